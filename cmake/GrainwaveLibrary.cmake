@@ -1,0 +1,15 @@
+# grainwave_library(NAME SOURCES_VAR PUBLIC_LINKS...)
+# One library target per code folder. A folder whose sources are still header-only becomes an
+# INTERFACE target, so the dependency graph is the same from the first commit on.
+function(grainwave_library name)
+  cmake_parse_arguments(GL "" "" "SOURCES;PUBLIC;PRIVATE" ${ARGN})
+  if(GL_SOURCES)
+    add_library(${name} ${GL_SOURCES})
+    target_include_directories(${name} PUBLIC ${PROJECT_SOURCE_DIR})
+    target_link_libraries(${name} PUBLIC ${GL_PUBLIC} PRIVATE grainwave_warnings ${GL_PRIVATE})
+  else()
+    add_library(${name} INTERFACE)
+    target_include_directories(${name} INTERFACE ${PROJECT_SOURCE_DIR})
+    target_link_libraries(${name} INTERFACE ${GL_PUBLIC})
+  endif()
+endfunction()

@@ -1,0 +1,89 @@
+#include "core/Mpi.hpp"
+
+namespace grainwave::mpi {
+
+Session::Session(int* argc, char*** argv) {
+  int initialised = 0;
+  MPI_Initialized(&initialised);
+  if (!initialised) {
+    MPI_Init(argc, argv);
+    owns_ = true;
+  }
+}
+
+Session::~Session() {
+  int finalised = 0;
+  MPI_Finalized(&finalised);
+  if (owns_ && !finalised) MPI_Finalize();
+}
+
+int rank(MPI_Comm comm) {
+  int r = 0;
+  MPI_Comm_rank(comm, &r);
+  return r;
+}
+
+int size(MPI_Comm comm) {
+  int s = 1;
+  MPI_Comm_size(comm, &s);
+  return s;
+}
+
+namespace {
+template <class T>
+T all_reduce(T local, MPI_Datatype type, MPI_Op op, MPI_Comm comm) {
+  T result{};
+  MPI_Allreduce(&local, &result, 1, type, op, comm);
+  return result;
+}
+}  // namespace
+
+double sum(double local, MPI_Comm comm) { return all_reduce(local, MPI_DOUBLE, MPI_SUM, comm); }
+double max(double local, MPI_Comm comm) { return all_reduce(local, MPI_DOUBLE, MPI_MAX, comm); }
+double min(double local, MPI_Comm comm) { return all_reduce(local, MPI_DOUBLE, MPI_MIN, comm); }
+std::int64_t sum(std::int64_t local, MPI_Comm comm) {
+  return all_reduce(local, MPI_INT64_T, MPI_SUM, comm);
+}
+std::int64_t max(std::int64_t local, MPI_Comm comm) {
+  return all_reduce(local, MPI_INT64_T, MPI_MAX, comm);
+}
+
+std::int64_t exclusive_prefix_sum(std::int64_t local, MPI_Comm comm) {
+  std::int64_t before = 0;
+  MPI_Exscan(&local, &before, 1, MPI_INT64_T, MPI_SUM, comm);
+  return rank(comm) == 0 ? 0 : before;
+}
+
+bool any(bool local, MPI_Comm comm) {
+  return all_reduce(local ? 1 : 0, MPI_INT, MPI_MAX, comm) != 0;
+}
+
+std::string broadcast(const std::string& value, int root, MPI_Comm comm) {
+  std::int64_t n = static_cast<std::int64_t>(value.size());
+  MPI_Bcast(&n, 1, MPI_INT64_T, root, comm);
+  std::string result = rank(comm) == root ? value : std::string(static_cast<std::size_t>(n), '\0');
+  if (n > 0) MPI_Bcast(result.data(), static_cast<int>(n), MPI_CHAR, root, comm);
+  return result;
+}
+
+std::vector<std::string> all_gather(const std::string& value, MPI_Comm comm) {
+  const int p = size(comm);
+  int n = static_cast<int>(value.size());
+  std::vector<int> counts(static_cast<std::size_t>(p)), offsets(static_cast<std::size_t>(p));
+  MPI_Allgather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, comm);
+  int total = 0;
+  for (int i = 0; i < p; ++i) {
+    offsets[static_cast<std::size_t>(i)] = total;
+    total += counts[static_cast<std::size_t>(i)];
+  }
+  std::string all(static_cast<std::size_t>(total), '\0');
+  MPI_Allgatherv(value.data(), n, MPI_CHAR, all.data(), counts.data(), offsets.data(), MPI_CHAR,
+                 comm);
+  std::vector<std::string> out;
+  for (int i = 0; i < p; ++i)
+    out.push_back(all.substr(static_cast<std::size_t>(offsets[static_cast<std::size_t>(i)]),
+                             static_cast<std::size_t>(counts[static_cast<std::size_t>(i)])));
+  return out;
+}
+
+}  // namespace grainwave::mpi

@@ -1,0 +1,51 @@
+#pragma once
+// The rectangular box particles live in, and what happens at each of its six faces.
+// Shared by the hard-sphere collider and the DEM. In 2D the z faces are ignored.
+#include <Eigen/Core>
+
+#include <array>
+
+namespace grainwave::particles {
+
+enum class FaceKind {
+  kPeriodic,  ///< leaves through this face, re-enters through the opposite one
+  kWall,      ///< a rigid plane of infinite mass (collides with particles)
+  kOpen,      ///< a particle whose centre leaves the box is removed (and counted)
+};
+
+struct Domain {
+  int dimension = 3;
+  Eigen::Vector3d lo = Eigen::Vector3d::Zero();
+  Eigen::Vector3d hi = Eigen::Vector3d::Ones();
+  /// face[axis][0] is the low face, face[axis][1] the high face. Periodic faces come in pairs.
+  std::array<std::array<FaceKind, 2>, 3> face{{{FaceKind::kPeriodic, FaceKind::kPeriodic},
+                                               {FaceKind::kPeriodic, FaceKind::kPeriodic},
+                                               {FaceKind::kPeriodic, FaceKind::kPeriodic}}};
+
+  Eigen::Vector3d length() const { return hi - lo; }
+  bool periodic(int axis) const { return face[static_cast<std::size_t>(axis)][0] == FaceKind::kPeriodic; }
+
+  /// Minimum-image separation b - a across periodic axes.
+  Eigen::Vector3d separation(const Eigen::Vector3d& a, const Eigen::Vector3d& b) const {
+    Eigen::Vector3d d = b - a;
+    for (int k = 0; k < dimension; ++k) {
+      if (!periodic(k)) continue;
+      const double L = hi[k] - lo[k];
+      if (d[k] > 0.5 * L) d[k] -= L;
+      else if (d[k] < -0.5 * L) d[k] += L;
+    }
+    return d;
+  }
+
+  /// Maps a position back into [lo, hi) along periodic axes.
+  void wrap(Eigen::Vector3d& x) const {
+    for (int k = 0; k < dimension; ++k) {
+      if (!periodic(k)) continue;
+      const double L = hi[k] - lo[k];
+      while (x[k] >= hi[k]) x[k] -= L;
+      while (x[k] < lo[k]) x[k] += L;
+    }
+  }
+};
+
+}  // namespace grainwave::particles

@@ -1,0 +1,75 @@
+#include "particles/ParticleStore.hpp"
+
+namespace grainwave::particles {
+
+void ParticleStore::reserve(std::size_t n) {
+  position.reserve(n);
+  velocity.reserve(n);
+  angular_velocity.reserve(n);
+  force.reserve(n);
+  torque.reserve(n);
+  radius.reserve(n);
+  mass.reserve(n);
+  inertia.reserve(n);
+  id.reserve(n);
+  flags.reserve(n);
+}
+
+void ParticleStore::clear() {
+  position.clear();
+  velocity.clear();
+  angular_velocity.clear();
+  force.clear();
+  torque.clear();
+  radius.clear();
+  mass.clear();
+  inertia.clear();
+  id.clear();
+  flags.clear();
+}
+
+std::size_t ParticleStore::add(std::int64_t particle_id, const Vec3& x, const Vec3& v,
+                               const Vec3& omega, double r, double m, double moment_of_inertia,
+                               std::uint32_t particle_flags) {
+  position.push_back(x);
+  velocity.push_back(v);
+  angular_velocity.push_back(omega);
+  force.push_back(Vec3::Zero());
+  torque.push_back(Vec3::Zero());
+  radius.push_back(r);
+  mass.push_back(m);
+  inertia.push_back(moment_of_inertia);
+  id.push_back(particle_id);
+  flags.push_back(particle_flags);
+  return id.size() - 1;
+}
+
+namespace {
+template <class T>
+void move_last_into(std::vector<T>& a, std::size_t i) {
+  a[i] = a.back();
+  a.pop_back();
+}
+}  // namespace
+
+void ParticleStore::remove(std::size_t i) {
+  move_last_into(position, i);
+  move_last_into(velocity, i);
+  move_last_into(angular_velocity, i);
+  move_last_into(force, i);
+  move_last_into(torque, i);
+  move_last_into(radius, i);
+  move_last_into(mass, i);
+  move_last_into(inertia, i);
+  move_last_into(id, i);
+  move_last_into(flags, i);
+}
+
+void ParticleStore::append_from(const ParticleStore& other, std::size_t i) {
+  add(other.id[i], other.position[i], other.velocity[i], other.angular_velocity[i],
+      other.radius[i], other.mass[i], other.inertia[i], other.flags[i]);
+  force.back() = other.force[i];
+  torque.back() = other.torque[i];
+}
+
+}  // namespace grainwave::particles

@@ -1,0 +1,66 @@
+#pragma once
+// The one particle store shared by the hard-sphere collider, the DEM and the fluid coupling.
+//
+// Structure of arrays: each property is its own contiguous array indexed by the particle's local
+// slot, so a kernel streams only the fields it touches. Vectors are always 3-component; 2D scenes
+// (disks = cylinders of unit depth in the x-y plane) keep z = 0 and use only angular_velocity.z().
+// Slots are not stable: remove() moves the last particle into the hole. `id` is the stable,
+// globally unique name of a particle and is what output, restart and error messages use.
+#include <Eigen/Core>
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+namespace grainwave::particles {
+
+using Vec3 = Eigen::Vector3d;
+
+/// Bit flags carried by every particle.
+enum ParticleFlag : std::uint32_t {
+  kFixed = 1u << 0,  ///< immovable (infinite mass), e.g. a rough-wall particle
+  kGhost = 1u << 1,  ///< copy of a particle owned by another rank or a periodic image
+};
+
+/// Moment of inertia of a homogeneous solid sphere (dim 3) or disk (dim 2) about its centre.
+inline double solid_inertia(int dimension, double mass, double radius) {
+  return (dimension == 2 ? 0.5 : 0.4) * mass * radius * radius;
+}
+
+struct ParticleStore {
+  std::vector<Vec3> position;
+  std::vector<Vec3> velocity;
+  std::vector<Vec3> angular_velocity;
+  std::vector<Vec3> force;   ///< external force held constant over a step (fluid, gravity, ...)
+  std::vector<Vec3> torque;  ///< external torque held constant over a step
+  std::vector<double> radius;
+  std::vector<double> mass;
+  std::vector<double> inertia;  ///< scalar moment of inertia (spheres/disks are isotropic)
+  std::vector<std::int64_t> id;
+  std::vector<std::uint32_t> flags;
+
+  std::size_t size() const { return id.size(); }
+  bool empty() const { return id.empty(); }
+
+  void reserve(std::size_t n);
+  void clear();
+  /// Appends one particle with zero force and torque; returns its slot.
+  std::size_t add(std::int64_t particle_id, const Vec3& x, const Vec3& v, const Vec3& omega,
+                  double r, double m, double moment_of_inertia, std::uint32_t particle_flags = 0);
+  /// Removes slot i by moving the last particle into it (order is not preserved).
+  void remove(std::size_t i);
+  /// Appends slot i of `other`.
+  void append_from(const ParticleStore& other, std::size_t i);
+
+  bool is_fixed(std::size_t i) const { return (flags[i] & kFixed) != 0; }
+  /// Inverse mass, zero for fixed particles (so impulses and forces leave them unmoved).
+  double inverse_mass(std::size_t i) const { return is_fixed(i) ? 0.0 : 1.0 / mass[i]; }
+  double inverse_inertia(std::size_t i) const { return is_fixed(i) ? 0.0 : 1.0 / inertia[i]; }
+
+  /// Bytes held per particle by the arrays above (for memory estimates and benchmarks).
+  static constexpr std::size_t bytes_per_particle() {
+    return 5 * sizeof(Vec3) + 3 * sizeof(double) + sizeof(std::int64_t) + sizeof(std::uint32_t);
+  }
+};
+
+}  // namespace grainwave::particles
