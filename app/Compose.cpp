@@ -1,0 +1,35 @@
+#include "app/Compose.hpp"
+
+#include "app/Simulation.hpp"
+#include "particles/ParticleSystem.hpp"
+
+namespace grainwave::app {
+
+const SceneSchema& scene_schema() {
+  static const SceneSchema schema = [] {
+    SceneSchema s;
+    Simulation::declare(s);
+    particles::ParticleSystem::declare(s);
+    return s;
+  }();
+  return schema;
+}
+
+std::unique_ptr<io::System> compose_system(const Scene& scene) {
+  if (scene.has("particles")) return std::make_unique<particles::ParticleSystem>(scene);
+  throw InputError({scene.file(), 0}, "",
+                   "the scene declares no physics to run: add a [particles] section",
+                   "see docs/scene-reference.md");
+}
+
+std::vector<std::string> modules_built(const Scene& scene) {
+  std::vector<std::string> lines;
+  const auto& schema = scene_schema();
+  for (const auto& name : scene.present_sections()) {
+    const auto* decl = schema.find(name);
+    lines.push_back("[" + name + "] " + decl->doc);
+  }
+  return lines;
+}
+
+}  // namespace grainwave::app

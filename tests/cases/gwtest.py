@@ -1,0 +1,65 @@
+"""Shared helpers for grainwave's command-level tests (run by CTest).
+
+Each test script is called as  python3 SCRIPT TEST_NAME  with the environment set by CTest:
+GRAINWAVE (the executable), GRAINWAVE_SOURCE (the source tree), GRAINWAVE_MPIEXEC (the MPI
+launcher, space separated) and GRAINWAVE_WORK (a scratch folder for this test).
+Exit code 0 passes, 77 skips (with a message saying why), anything else fails.
+"""
+import json
+import os
+import shutil
+import subprocess
+import sys
+
+EXE = os.environ["GRAINWAVE"]
+SOURCE = os.environ["GRAINWAVE_SOURCE"]
+MPIEXEC = os.environ.get("GRAINWAVE_MPIEXEC", "mpirun").split()
+WORK = os.environ["GRAINWAVE_WORK"]
+SKIP = 77
+
+
+def scratch(name):
+    """A fresh, empty folder for one test."""
+    path = os.path.join(WORK, name)
+    shutil.rmtree(path, ignore_errors=True)
+    os.makedirs(path)
+    return path
+
+
+def case(name):
+    return os.path.join(SOURCE, "cases", name)
+
+
+def grainwave(*args, ranks=None, check=None, timeout=600):
+    """Runs grainwave (under MPI when ranks is given); returns the CompletedProcess."""
+    cmd = ([*MPIEXEC, "-np", str(ranks)] if ranks else []) + [EXE, *args]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+    if check is not None and proc.returncode != check:
+        fail(f"{' '.join(cmd)} exited {proc.returncode}, expected {check}\n"
+             f"stdout:\n{proc.stdout}\nstderr:\n{proc.stderr}")
+    return proc
+
+
+def summary(folder):
+    with open(os.path.join(folder, "summary.json")) as f:
+        return json.load(f)
+
+
+def fail(message):
+    print("FAIL:", message)
+    sys.exit(1)
+
+
+def expect(condition, message):
+    if not condition:
+        fail(message)
+    print("ok:", message)
+
+
+def main(tests):
+    """Runs the test named on the command line from the dict name -> function."""
+    name = sys.argv[1]
+    if name not in tests:
+        fail(f"no test {name}; have {sorted(tests)}")
+    result = tests[name]()
+    sys.exit(result or 0)
