@@ -268,7 +268,7 @@ int Simulation::run() {
   folder_error = mpi::broadcast(folder_error);
   if (!folder_error.empty()) throw InputError({"command line", 0}, "--out", folder_error);
   MPI_Barrier(MPI_COMM_WORLD);
-  log::open_file(folder_ / "log.txt");
+  log::open_file(folder_ / "log.txt", restarted_from_.has_value());
 
   std::signal(SIGINT, request_stop);
   std::signal(SIGTERM, request_stop);

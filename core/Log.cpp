@@ -30,12 +30,15 @@ void init(Verbosity verbosity) {
   spdlog::set_default_logger(logger);
 }
 
-void open_file(const std::filesystem::path& path) {
+void open_file(const std::filesystem::path& path, bool append) {
   if (mpi::rank() != 0) return;
   g_file_path = path;
   std::filesystem::path partial = path;
   partial += ".partial";
-  g_file_sink = std::make_shared<spdlog::sinks::basic_file_sink_mt>(partial.string(), true);
+  std::error_code ec;
+  if (append && !std::filesystem::exists(partial) && std::filesystem::exists(path))
+    std::filesystem::rename(path, partial, ec);
+  g_file_sink = std::make_shared<spdlog::sinks::basic_file_sink_mt>(partial.string(), !append);
   g_file_sink->set_pattern("[%Y-%m-%d %H:%M:%S.%e] [%l] %v");
   g_file_sink->set_level(spdlog::level::debug);
   spdlog::default_logger()->sinks().push_back(g_file_sink);

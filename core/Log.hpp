@@ -13,8 +13,9 @@ enum class Verbosity { kQuiet, kNormal, kVerbose };
 /// Sets up the console logger (call once, after MPI is initialised).
 void init(Verbosity verbosity);
 /// Adds the run's log file (rank 0). Written as `<path>.partial` while the run goes and renamed
-/// to `<path>` when the run ends, so an interrupted run's log is visibly incomplete.
-void open_file(const std::filesystem::path& path);
+/// to `<path>` when the run ends, so an interrupted run's log is visibly incomplete. A restarted
+/// run appends to the log it continues (`append`).
+void open_file(const std::filesystem::path& path, bool append = false);
 /// Flushes and renames the log file to its final name.
 void close_file();
 
