@@ -1,0 +1,171 @@
+#include "wavelet/InterpolatingWavelet.hpp"
+
+#include <stdexcept>
+#include <string>
+
+namespace grainwave::wavelet {
+
+void lagrange_weights(std::span<const double> nodes, double x, std::span<double> weights) {
+  if (weights.size() != nodes.size()) throw std::invalid_argument("lagrange_weights: size mismatch");
+  for (std::size_t k = 0; k < nodes.size(); ++k) {
+    double num = 1.0;
+    double den = 1.0;
+    for (std::size_t m = 0; m < nodes.size(); ++m) {
+      if (m == k) continue;
+      num *= x - nodes[m];
+      den *= nodes[k] - nodes[m];
+    }
+    weights[k] = num / den;
+  }
+}
+
+PredictStencil deslauriers_dubuc_stencil(int order, int odd, int n_local, bool periodic) {
+  if (order < 2 || order > kMaxPredictOrder || order % 2 != 0)
+    throw std::invalid_argument("Deslauriers-Dubuc order must be 2, 4 or 6, got " + std::to_string(order));
+  if (odd % 2 != 1 || odd < 0 || odd >= n_local) throw std::invalid_argument("odd index out of range");
+  const int n_even = periodic ? n_local / 2 : (n_local + 1) / 2;
+  if (periodic && n_local % 2 != 0) throw std::invalid_argument("periodic line needs an even sample count");
+  if (!periodic && n_local % 2 != 1) throw std::invalid_argument("non-periodic line needs an odd sample count");
+  if (n_even < order)
+    throw std::invalid_argument("line has " + std::to_string(n_even) + " coarse samples, order " +
+                                std::to_string(order) + " needs at least that many");
+  int k_first = (odd + 1) / 2 - order / 2;  // centred: order/2 evens on each side of the odd
+  if (!periodic) k_first = std::clamp(k_first, 0, n_even - order);  // one-sided near the ends
+
+  PredictStencil s;
+  s.size = order;
+  std::array<double, kMaxPredictOrder> nodes{};
+  for (int m = 0; m < order; ++m) {
+    const int k = k_first + m;
+    nodes[static_cast<std::size_t>(m)] = static_cast<double>(2 * k - odd);  // relative: exact dyadics
+    s.even[static_cast<std::size_t>(m)] = 2 * (((k % n_even) + n_even) % n_even);
+  }
+  lagrange_weights(std::span<const double>(nodes.data(), static_cast<std::size_t>(order)), 0.0,
+                   std::span<double>(s.weight.data(), static_cast<std::size_t>(order)));
+  return s;
+}
+
+template <int Dim>
+LiftingTransform<Dim>::LiftingTransform(std::array<int, Dim> extent, std::array<bool, Dim> periodic,
+                                        LiftingConfig config)
+    : shape_{extent}, periodic_(periodic), config_(config) {
+  if (config.levels < 0) throw std::invalid_argument("LiftingTransform: negative number of levels");
+  tables_.resize(static_cast<std::size_t>(config.levels * Dim));
+  for (int a = 0; a < Dim; ++a) {
+    const int n = extent[static_cast<std::size_t>(a)];
+    const bool per = periodic[static_cast<std::size_t>(a)];
+    const int span = per ? n : n - 1;
+    if (n < 1 || span % (1 << config.levels) != 0)
+      throw std::invalid_argument("LiftingTransform: extent " + std::to_string(n) + " along axis " +
+                                  std::to_string(a) + " is not " + (per ? "" : "1 + ") + "a multiple of 2^" +
+                                  std::to_string(config.levels));
+    for (int t = 0; t < config.levels; ++t) {
+      LineStencils& table = tables_[static_cast<std::size_t>(t * Dim + a)];
+      table.n_local = per ? n >> t : ((n - 1) >> t) + 1;
+      table.order = config.order;
+      const int n_odd = table.n_local / 2;
+      table.even.resize(static_cast<std::size_t>(n_odd * config.order));
+      table.weight.resize(table.even.size());
+      for (int q = 0; q < n_odd; ++q) {
+        const PredictStencil s = deslauriers_dubuc_stencil(config.order, 2 * q + 1, table.n_local, per);
+        for (int m = 0; m < config.order; ++m) {
+          const auto at = static_cast<std::size_t>(q * config.order + m);
+          table.even[at] = s.even[static_cast<std::size_t>(m)];
+          table.weight[at] = s.weight[static_cast<std::size_t>(m)];
+        }
+      }
+    }
+  }
+}
+
+template <int Dim>
+template <class LineOp>
+void LiftingTransform<Dim>::for_each_line(int axis, int step, LineOp&& op) const {
+  // Lines along `axis` through every point of step t's grid (other coords multiples of 2^t).
+  std::array<int, Dim> count{};
+  std::size_t lines = 1;
+  for (int b = 0; b < Dim; ++b) {
+    count[static_cast<std::size_t>(b)] = b == axis ? 1 : stencils(b, step).n_local;
+    lines *= static_cast<std::size_t>(count[static_cast<std::size_t>(b)]);
+  }
+  const int s = 1 << step;
+  for (std::size_t line = 0; line < lines; ++line) {
+    std::size_t rest = line;
+    std::ptrdiff_t offset = 0;
+    for (int b = 0; b < Dim; ++b) {
+      const auto nb = static_cast<std::size_t>(count[static_cast<std::size_t>(b)]);
+      offset += static_cast<std::ptrdiff_t>(rest % nb) * s * shape_.stride(b);
+      rest /= nb;
+    }
+    op(offset);
+  }
+}
+
+template <int Dim>
+void LiftingTransform<Dim>::predict_line(double* base, std::ptrdiff_t stride, const LineStencils& s,
+                                         double sign) const {
+  const int n_odd = s.n_local / 2;
+  const int p = s.order;
+  for (int q = 0; q < n_odd; ++q) {
+    const int* e = &s.even[static_cast<std::size_t>(q * p)];
+    const double* w = &s.weight[static_cast<std::size_t>(q * p)];
+    double prediction = 0.0;
+    for (int m = 0; m < p; ++m) prediction += w[m] * base[e[m] * stride];
+    base[(2 * q + 1) * stride] += sign * prediction;
+  }
+}
+
+template <int Dim>
+void LiftingTransform<Dim>::update_line(double* base, std::ptrdiff_t stride, const LineStencils& s,
+                                        double sign) const {
+  const int n_odd = s.n_local / 2;
+  const int p = s.order;
+  for (int q = 0; q < n_odd; ++q) {
+    const int* e = &s.even[static_cast<std::size_t>(q * p)];
+    const double* w = &s.weight[static_cast<std::size_t>(q * p)];
+    const double half_detail = 0.5 * sign * base[(2 * q + 1) * stride];
+    for (int m = 0; m < p; ++m) base[e[m] * stride] += w[m] * half_detail;
+  }
+}
+
+template <int Dim>
+void LiftingTransform<Dim>::forward_step(std::span<double> data, int step) const {
+  if (data.size() != shape_.size()) throw std::invalid_argument("LiftingTransform: data size mismatch");
+  for (int a = 0; a < Dim; ++a) {
+    const LineStencils& s = stencils(a, step);
+    const std::ptrdiff_t stride = (std::ptrdiff_t{1} << step) * shape_.stride(a);
+    for_each_line(a, step, [&](std::ptrdiff_t offset) {
+      predict_line(data.data() + offset, stride, s, -1.0);
+      if (config_.update) update_line(data.data() + offset, stride, s, +1.0);
+    });
+  }
+}
+
+template <int Dim>
+void LiftingTransform<Dim>::inverse_step(std::span<double> data, int step) const {
+  if (data.size() != shape_.size()) throw std::invalid_argument("LiftingTransform: data size mismatch");
+  for (int a = Dim - 1; a >= 0; --a) {
+    const LineStencils& s = stencils(a, step);
+    const std::ptrdiff_t stride = (std::ptrdiff_t{1} << step) * shape_.stride(a);
+    for_each_line(a, step, [&](std::ptrdiff_t offset) {
+      if (config_.update) update_line(data.data() + offset, stride, s, -1.0);
+      predict_line(data.data() + offset, stride, s, +1.0);
+    });
+  }
+}
+
+template <int Dim>
+void LiftingTransform<Dim>::forward(std::span<double> data) const {
+  for (int t = 0; t < config_.levels; ++t) forward_step(data, t);
+}
+
+template <int Dim>
+void LiftingTransform<Dim>::inverse(std::span<double> data) const {
+  for (int t = config_.levels - 1; t >= 0; --t) inverse_step(data, t);
+}
+
+template class LiftingTransform<1>;
+template class LiftingTransform<2>;
+template class LiftingTransform<3>;
+
+}  // namespace grainwave::wavelet
