@@ -101,43 +101,87 @@ void LiftingTransform<Dim>::for_each_line(int axis, int step, LineOp&& op) const
   }
 }
 
-template <int Dim>
-void LiftingTransform<Dim>::predict_line(double* base, std::ptrdiff_t stride, const LineStencils& s,
-                                         double sign) const {
-  const int n_odd = s.n_local / 2;
-  const int p = s.order;
+namespace {
+
+// Kernels on a bundle of `width` parallel lines that sit next to each other in memory (line j
+// starts at base + j). A bundle of one is a plain line; along axes > 0 at the finest step the
+// bundle is a whole contiguous slab, so the j loop runs over contiguous memory and vectorises.
+template <int P>
+void predict_bundle(double* base, std::ptrdiff_t stride, std::ptrdiff_t width, int n_odd, const int* even,
+                    const double* weight, double sign) {
   for (int q = 0; q < n_odd; ++q) {
-    const int* e = &s.even[static_cast<std::size_t>(q * p)];
-    const double* w = &s.weight[static_cast<std::size_t>(q * p)];
-    double prediction = 0.0;
-    for (int m = 0; m < p; ++m) prediction += w[m] * base[e[m] * stride];
-    base[(2 * q + 1) * stride] += sign * prediction;
+    const int* e = even + q * P;
+    const double* w = weight + q * P;
+    double* detail = base + (2 * q + 1) * stride;
+    std::array<const double*, P> src;
+    for (int m = 0; m < P; ++m) src[static_cast<std::size_t>(m)] = base + e[m] * stride;
+    for (std::ptrdiff_t j = 0; j < width; ++j) {
+      double prediction = 0.0;
+      for (int m = 0; m < P; ++m) prediction += w[m] * src[static_cast<std::size_t>(m)][j];
+      detail[j] += sign * prediction;
+    }
   }
 }
 
-template <int Dim>
-void LiftingTransform<Dim>::update_line(double* base, std::ptrdiff_t stride, const LineStencils& s,
-                                        double sign) const {
-  const int n_odd = s.n_local / 2;
-  const int p = s.order;
+template <int P>
+void update_bundle(double* base, std::ptrdiff_t stride, std::ptrdiff_t width, int n_odd, const int* even,
+                   const double* weight, double sign) {
   for (int q = 0; q < n_odd; ++q) {
-    const int* e = &s.even[static_cast<std::size_t>(q * p)];
-    const double* w = &s.weight[static_cast<std::size_t>(q * p)];
-    const double half_detail = 0.5 * sign * base[(2 * q + 1) * stride];
-    for (int m = 0; m < p; ++m) base[e[m] * stride] += w[m] * half_detail;
+    const int* e = even + q * P;
+    const double* w = weight + q * P;
+    const double* detail = base + (2 * q + 1) * stride;
+    for (int m = 0; m < P; ++m) {
+      double* dst = base + e[m] * stride;
+      const double half_w = 0.5 * sign * w[m];
+      for (std::ptrdiff_t j = 0; j < width; ++j) dst[j] += half_w * detail[j];
+    }
   }
+}
+
+template <bool Predict>
+void run_bundle(int order, double* base, std::ptrdiff_t stride, std::ptrdiff_t width, int n_odd, const int* even,
+                const double* weight, double sign) {
+  // Dispatch once per bundle so the stencil loop has a compile-time length.
+  switch (order) {
+    case 2: return Predict ? predict_bundle<2>(base, stride, width, n_odd, even, weight, sign)
+                           : update_bundle<2>(base, stride, width, n_odd, even, weight, sign);
+    case 4: return Predict ? predict_bundle<4>(base, stride, width, n_odd, even, weight, sign)
+                           : update_bundle<4>(base, stride, width, n_odd, even, weight, sign);
+    default: return Predict ? predict_bundle<6>(base, stride, width, n_odd, even, weight, sign)
+                            : update_bundle<6>(base, stride, width, n_odd, even, weight, sign);
+  }
+}
+
+}  // namespace
+
+template <int Dim>
+template <bool Predict>
+void LiftingTransform<Dim>::sweep(std::span<double> data, int axis, int step, double sign) const {
+  const LineStencils& s = stencils(axis, step);
+  const std::ptrdiff_t stride = (std::ptrdiff_t{1} << step) * shape_.stride(axis);
+  const int n_odd = s.n_local / 2;
+  if (step == 0 && axis > 0) {
+    // Every line of the finest grid: the lines through one slab of axes < axis are contiguous.
+    const std::ptrdiff_t width = shape_.stride(axis);
+    const std::ptrdiff_t slab = width * shape_.extent[static_cast<std::size_t>(axis)];
+    const auto slabs = static_cast<std::ptrdiff_t>(shape_.size()) / slab;
+    for (std::ptrdiff_t k = 0; k < slabs; ++k)
+      run_bundle<Predict>(config_.order, data.data() + k * slab, stride, width, n_odd, s.even.data(),
+                          s.weight.data(), sign);
+    return;
+  }
+  for_each_line(axis, step, [&](std::ptrdiff_t offset) {
+    run_bundle<Predict>(config_.order, data.data() + offset, stride, 1, n_odd, s.even.data(), s.weight.data(), sign);
+  });
 }
 
 template <int Dim>
 void LiftingTransform<Dim>::forward_step(std::span<double> data, int step) const {
   if (data.size() != shape_.size()) throw std::invalid_argument("LiftingTransform: data size mismatch");
+  // Predict then update per axis: the update of axis a must see axis a's details only.
   for (int a = 0; a < Dim; ++a) {
-    const LineStencils& s = stencils(a, step);
-    const std::ptrdiff_t stride = (std::ptrdiff_t{1} << step) * shape_.stride(a);
-    for_each_line(a, step, [&](std::ptrdiff_t offset) {
-      predict_line(data.data() + offset, stride, s, -1.0);
-      if (config_.update) update_line(data.data() + offset, stride, s, +1.0);
-    });
+    sweep<true>(data, a, step, -1.0);
+    if (config_.update) sweep<false>(data, a, step, +1.0);
   }
 }
 
@@ -145,12 +189,8 @@ template <int Dim>
 void LiftingTransform<Dim>::inverse_step(std::span<double> data, int step) const {
   if (data.size() != shape_.size()) throw std::invalid_argument("LiftingTransform: data size mismatch");
   for (int a = Dim - 1; a >= 0; --a) {
-    const LineStencils& s = stencils(a, step);
-    const std::ptrdiff_t stride = (std::ptrdiff_t{1} << step) * shape_.stride(a);
-    for_each_line(a, step, [&](std::ptrdiff_t offset) {
-      if (config_.update) update_line(data.data() + offset, stride, s, -1.0);
-      predict_line(data.data() + offset, stride, s, +1.0);
-    });
+    if (config_.update) sweep<false>(data, a, step, -1.0);
+    sweep<true>(data, a, step, +1.0);
   }
 }
 

@@ -95,8 +95,9 @@ class LiftingTransform {
   }
   template <class LineOp>
   void for_each_line(int axis, int step, LineOp&& op) const;
-  void predict_line(double* base, std::ptrdiff_t stride, const LineStencils& s, double sign) const;
-  void update_line(double* base, std::ptrdiff_t stride, const LineStencils& s, double sign) const;
+  /// One predict (or update) pass along `axis` over every line of step `step`'s grid.
+  template <bool Predict>
+  void sweep(std::span<double> data, int axis, int step, double sign) const;
 
   ArrayShape<Dim> shape_;
   std::array<bool, Dim> periodic_;
