@@ -25,12 +25,12 @@ PredictStencil deslauriers_dubuc_stencil(int order, int odd, int n_local, bool p
   if (odd % 2 != 1 || odd < 0 || odd >= n_local) throw std::invalid_argument("odd index out of range");
   const int n_even = periodic ? n_local / 2 : (n_local + 1) / 2;
   if (periodic && n_local % 2 != 0) throw std::invalid_argument("periodic line needs an even sample count");
-  if (!periodic && n_local % 2 != 1) throw std::invalid_argument("non-periodic line needs an odd sample count");
   if (n_even < order)
     throw std::invalid_argument("line has " + std::to_string(n_even) + " coarse samples, order " +
                                 std::to_string(order) + " needs at least that many");
   int k_first = (odd + 1) / 2 - order / 2;  // centred: order/2 evens on each side of the odd
-  if (!periodic) k_first = std::clamp(k_first, 0, n_even - order);  // one-sided near the ends
+  // One-sided near the ends; past the last even (even-length line) this extrapolates.
+  if (!periodic) k_first = std::clamp(k_first, 0, n_even - order);
 
   PredictStencil s;
   s.size = order;
@@ -54,11 +54,9 @@ LiftingTransform<Dim>::LiftingTransform(std::array<int, Dim> extent, std::array<
   for (int a = 0; a < Dim; ++a) {
     const int n = extent[static_cast<std::size_t>(a)];
     const bool per = periodic[static_cast<std::size_t>(a)];
-    const int span = per ? n : n - 1;
-    if (n < 1 || span % (1 << config.levels) != 0)
-      throw std::invalid_argument("LiftingTransform: extent " + std::to_string(n) + " along axis " +
-                                  std::to_string(a) + " is not " + (per ? "" : "1 + ") + "a multiple of 2^" +
-                                  std::to_string(config.levels));
+    if (n < 1 || (per && n % (1 << config.levels) != 0))
+      throw std::invalid_argument("LiftingTransform: periodic extent " + std::to_string(n) + " along axis " +
+                                  std::to_string(a) + " is not a multiple of 2^" + std::to_string(config.levels));
     for (int t = 0; t < config.levels; ++t) {
       LineStencils& table = tables_[static_cast<std::size_t>(t * Dim + a)];
       table.n_local = per ? n >> t : ((n - 1) >> t) + 1;
@@ -159,7 +157,9 @@ template <bool Predict>
 void LiftingTransform<Dim>::sweep(std::span<double> data, int axis, int step, double sign) const {
   const LineStencils& s = stencils(axis, step);
   const std::ptrdiff_t stride = (std::ptrdiff_t{1} << step) * shape_.stride(axis);
-  const int n_odd = s.n_local / 2;
+  // The update skips a last odd that has no even to its right: its prediction is an
+  // extrapolation with large weights, and spreading its detail would only amplify round-off.
+  const int n_odd = Predict ? s.n_local / 2 : (s.n_local - 1) / 2;
   if (step == 0 && axis > 0) {
     // Every line of the finest grid: the lines through one slab of axes < axis are contiguous.
     const std::ptrdiff_t width = shape_.stride(axis);

@@ -7,15 +7,17 @@
 //   predict  d_{2k+1} = u_{2k+1} - sum_m w_m u_{e_m}       (Deslauriers-Dubuc: Lagrange
 //            interpolation of order p = 4 or 6 through the p nearest evens)
 //   update   c_{e}    = u_{e} + 1/2 sum_{odd o ∋ e} w_{o,e} d_o   (optional; U = P^T / 2, which in
-//            the interior is the (p, p) biorthogonal lifting)
+//            the interior is the (p, p) biorthogonal lifting; extrapolated odds are left out)
 // The inverse runs the same steps backwards with the signs flipped, so reconstruction is exact up
 // to round-off on any data. Near a non-periodic edge the p evens are shifted inwards (one-sided
 // Lagrange interpolation of the same order), so polynomials of degree < p still give zero details.
 //
 // Layout conventions (see ArrayShape.hpp for index order):
 // - Periodic axis: extent n = n_coarse * 2^levels points at x_i = i h; the point at i = n is i = 0.
-// - Non-periodic axis: extent n = n_coarse_intervals * 2^levels + 1; both end points are kept on
-//   every level (a "redundant" grid: block edges are shared points).
+// - Non-periodic axis: any extent n. The grid of step t is every index that is a multiple of
+//   2^t, anchored at index 0. With n = m * 2^levels + 1 both end points stay on every level (a
+//   "redundant" grid whose block edges are shared points); otherwise the last odd points of a step
+//   are predicted by one-sided extrapolation of the same order. Each step needs >= order evens.
 // - After `forward` with L levels a point with multi-index i holds
 //     * a scaling coefficient (the sample, or its lifted value) if every i_a is a multiple of 2^L;
 //     * otherwise the detail of step t = min_a trailing_zeros(i_a) (t = 0 finest; level-j details
@@ -47,8 +49,8 @@ struct PredictStencil {
 };
 
 /// Deslauriers-Dubuc predict stencil of `order` (even, 2..6) for the odd level-local index `odd`
-/// on a line of `n_local` samples. Periodic: n_local even, indices wrap. Non-periodic: n_local
-/// odd, the stencil is shifted inward near the ends (needs (n_local + 1) / 2 >= order).
+/// on a line of `n_local` samples. Periodic: n_local even, indices wrap. Non-periodic: the
+/// stencil is shifted inward near the ends (needs (n_local + 1) / 2 >= order evens).
 PredictStencil deslauriers_dubuc_stencil(int order, int odd, int n_local, bool periodic);
 
 struct LiftingConfig {

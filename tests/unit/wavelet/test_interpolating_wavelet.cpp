@@ -71,14 +71,14 @@ std::vector<Case> all_cases() {
 }
 
 template <int Dim>
-gw::LiftingTransform<Dim> make_transform(const Case& c, int coarse, int levels) {
+gw::LiftingTransform<Dim> make_transform(const Case& c, int coarse, int levels, int extra) {
   std::array<int, Dim> extent{};
   std::array<bool, Dim> periodic{};
   for (int a = 0; a < Dim; ++a) {
     // Mix periodic and non-periodic axes in multi-D so both code paths meet in one array.
     const bool per = (a % 2 == 0) ? c.periodic : !c.periodic;
     periodic[a] = per;
-    extent[a] = coarse * (1 << levels) + (per ? 0 : 1);
+    extent[a] = coarse * (1 << levels) + (per ? 0 : extra);
   }
   return gw::LiftingTransform<Dim>(extent, periodic, {c.order, c.update, levels});
 }
@@ -87,8 +87,11 @@ template <int Dim>
 void check_perfect_reconstruction(int coarse, int levels) {
   std::mt19937 rng(1234 + Dim);
   std::uniform_real_distribution<double> dist(-1.0, 1.0);
-  for (const Case& c : all_cases()) {
-    const auto transform = make_transform<Dim>(c, coarse, levels);
+  // extra = 1: redundant non-periodic grid (end points on every level); 2, 3: the last odd points
+  // of some steps are extrapolated.
+  for (const Case& c : all_cases())
+    for (int extra : {1, 2, 3}) {
+    const auto transform = make_transform<Dim>(c, coarse, levels, extra);
     std::vector<double> original(transform.shape().size());
     for (double& v : original) v = dist(rng);
     std::vector<double> data = original;
@@ -100,7 +103,7 @@ void check_perfect_reconstruction(int coarse, int levels) {
     double error = 0.0;
     for (std::size_t i = 0; i < data.size(); ++i) error = std::max(error, std::abs(data[i] - original[i]));
     EXPECT_LT(error, 1e-13) << Dim << "D order " << c.order << " update " << c.update << " periodic "
-                            << c.periodic;
+                            << c.periodic << " extra " << extra;
   }
 }
 
@@ -111,8 +114,8 @@ TEST(LiftingTransform, PerfectReconstruction3D) { check_perfect_reconstruction<3
 TEST(LiftingTransform, RejectsExtentsThatDoNotCoarsen) {
   using T = gw::LiftingTransform<1>;
   EXPECT_THROW(T({30}, {true}, {4, false, 2}), std::invalid_argument);   // 30 not a multiple of 4
-  EXPECT_THROW(T({32}, {false}, {4, false, 2}), std::invalid_argument);  // needs 33
   EXPECT_THROW(T({17}, {false}, {6, false, 2}), std::invalid_argument);  // only 5 coarse points
+  EXPECT_NO_THROW(T({32}, {false}, {4, false, 2}));  // non-periodic: any extent with enough evens
 }
 
 // Tensor-product polynomial of degree order-1 per axis (non-periodic axes only: a polynomial is
@@ -120,11 +123,12 @@ TEST(LiftingTransform, RejectsExtentsThatDoNotCoarsen) {
 template <int Dim>
 void check_polynomial_details_vanish() {
   for (int order : {4, 6})
-    for (bool update : {false, true}) {
+    for (bool update : {false, true})
+      for (int extra : {1, 2}) {  // odd extent (redundant grid) and even extent (extrapolated end)
       const int levels = 2;
       std::array<int, Dim> extent{};
       std::array<bool, Dim> periodic{};
-      extent.fill(8 * (1 << levels) + 1);
+      extent.fill(8 * (1 << levels) + extra);
       const gw::LiftingTransform<Dim> transform(extent, periodic, {order, update, levels});
       const auto& shape = transform.shape();
       std::vector<double> data(shape.size());
@@ -153,7 +157,8 @@ void check_polynomial_details_vanish() {
         ++n_details;
       }
       EXPECT_GT(n_details, 0);
-      EXPECT_LT(max_detail, 1e-12) << Dim << "D order " << order << " update " << update;
+      EXPECT_LT(max_detail, 1e-12) << Dim << "D order " << order << " update " << update << " extent "
+                                   << extent[0];
     }
 }
 
