@@ -1,0 +1,319 @@
+#include "wavelet/BlockForest.hpp"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+namespace grainwave::wavelet {
+
+namespace {
+
+// The 3^Dim - 1 directions, faces first (fewest nonzero entries), then edges, then corners.
+template <int Dim>
+std::vector<std::array<int, Dim>> make_directions() {
+  std::vector<std::array<int, Dim>> dirs;
+  int total = 1;
+  for (int a = 0; a < Dim; ++a) total *= 3;
+  for (int code = 0; code < total; ++code) {
+    std::array<int, Dim> d{};
+    int rest = code;
+    for (int a = 0; a < Dim; ++a) {
+      d[static_cast<std::size_t>(a)] = rest % 3 - 1;
+      rest /= 3;
+    }
+    if (std::any_of(d.begin(), d.end(), [](int v) { return v != 0; })) dirs.push_back(d);
+  }
+  std::stable_sort(dirs.begin(), dirs.end(), [](const auto& x, const auto& y) {
+    auto nonzero = [](const auto& v) { return std::count_if(v.begin(), v.end(), [](int c) { return c != 0; }); };
+    return nonzero(x) < nonzero(y);
+  });
+  return dirs;
+}
+
+template <int Dim>
+const std::vector<std::array<int, Dim>>& directions() {
+  static const auto dirs = make_directions<Dim>();
+  return dirs;
+}
+
+// Child k of the block beyond `direction` touches the block we came from: along each axis the
+// child must sit on the side facing back.
+template <int Dim>
+bool child_faces_back(int k, const std::array<int, Dim>& direction) {
+  for (int a = 0; a < Dim; ++a) {
+    const int bit = (k >> a) & 1;
+    const int d = direction[static_cast<std::size_t>(a)];
+    if ((d == 1 && bit != 0) || (d == -1 && bit != 1)) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+template <int Dim>
+std::uint64_t hilbert_index(std::array<std::uint32_t, Dim> x, int bits) {
+  if constexpr (Dim == 1) {
+    return x[0];
+  } else {
+    if (bits <= 0) return 0;
+    const std::uint32_t top = 1u << (bits - 1);
+    // Undo the excess rotations/reflections from the top bit down (Skilling's AxesToTranspose).
+    for (std::uint32_t q = top; q > 1; q >>= 1) {
+      const std::uint32_t low = q - 1;
+      for (int i = 0; i < Dim; ++i) {
+        if (x[static_cast<std::size_t>(i)] & q) {
+          x[0] ^= low;
+        } else {
+          const std::uint32_t swap = (x[0] ^ x[static_cast<std::size_t>(i)]) & low;
+          x[0] ^= swap;
+          x[static_cast<std::size_t>(i)] ^= swap;
+        }
+      }
+    }
+    for (int i = 1; i < Dim; ++i) x[static_cast<std::size_t>(i)] ^= x[static_cast<std::size_t>(i - 1)];
+    std::uint32_t gray = 0;
+    for (std::uint32_t q = top; q > 1; q >>= 1)
+      if (x[Dim - 1] & q) gray ^= q - 1;
+    for (auto& c : x) c ^= gray;
+    // The transposed form holds the index bits spread over the axes: read them out top-down.
+    std::uint64_t h = 0;
+    for (int b = bits - 1; b >= 0; --b)
+      for (int i = 0; i < Dim; ++i) h = (h << 1) | ((x[static_cast<std::size_t>(i)] >> b) & 1u);
+    return h;
+  }
+}
+
+template <int Dim>
+BlockForest<Dim>::BlockForest(ForestConfig<Dim> config) : config_(config) {
+  int max_roots = 1;
+  for (int r : config.roots) {
+    if (r < 1) throw std::invalid_argument("BlockForest: every axis needs at least one root block");
+    max_roots = std::max(max_roots, r);
+  }
+  if (config.max_level < 0) throw std::invalid_argument("BlockForest: negative max_level");
+  curve_bits_ = config.max_level + std::bit_width(static_cast<unsigned>(max_roots - 1));
+  if (curve_bits_ > Key::kBitsPerAxis || (Dim > 1 && curve_bits_ * Dim > 64))
+    throw std::invalid_argument("BlockForest: max_level " + std::to_string(config.max_level) + " with " +
+                                std::to_string(max_roots) + " roots per axis does not fit a 64-bit key");
+  std::array<std::uint32_t, Dim> c{};
+  std::size_t total = 1;
+  for (int r : config.roots) total *= static_cast<std::size_t>(r);
+  for (std::size_t n = 0; n < total; ++n) {
+    std::size_t rest = n;
+    for (int a = 0; a < Dim; ++a) {
+      const auto r = static_cast<std::size_t>(config.roots[static_cast<std::size_t>(a)]);
+      c[static_cast<std::size_t>(a)] = static_cast<std::uint32_t>(rest % r);
+      rest /= r;
+    }
+    leaves_.push_back(Key::from_coords(0, c));
+  }
+  sort_and_index();
+}
+
+template <int Dim>
+std::optional<std::size_t> BlockForest<Dim>::find(const Key& key) const {
+  const auto it = index_.find(key);
+  if (it == index_.end()) return std::nullopt;
+  return it->second;
+}
+
+template <int Dim>
+std::optional<BlockKey<Dim>> BlockForest<Dim>::shifted(const Key& key, const std::array<int, Dim>& direction) const {
+  auto c = key.coords();
+  for (int a = 0; a < Dim; ++a) {
+    const auto n = static_cast<std::int64_t>(blocks_along(a, key.level));
+    std::int64_t v = static_cast<std::int64_t>(c[static_cast<std::size_t>(a)]) + direction[static_cast<std::size_t>(a)];
+    if (v < 0 || v >= n) {
+      if (!config_.periodic[static_cast<std::size_t>(a)]) return std::nullopt;
+      v = (v % n + n) % n;
+    }
+    c[static_cast<std::size_t>(a)] = static_cast<std::uint32_t>(v);
+  }
+  return Key::from_coords(key.level, c);
+}
+
+template <int Dim>
+void BlockForest<Dim>::neighbours(const Key& leaf, std::vector<Neighbour<Dim>>& out) const {
+  out.clear();
+  for (const auto& dir : directions<Dim>()) {
+    const auto beyond = shifted(leaf, dir);
+    if (!beyond) continue;
+    if (is_leaf(*beyond)) {
+      out.push_back({*beyond, 0, dir});
+    } else if (leaf.level > 0 && is_leaf(beyond->parent())) {
+      out.push_back({beyond->parent(), -1, dir});
+    } else if (leaf.level < config_.max_level) {
+      for (int k = 0; k < Key::kChildren; ++k)
+        if (child_faces_back<Dim>(k, dir) && is_leaf(beyond->child(k))) out.push_back({beyond->child(k), +1, dir});
+    }
+  }
+}
+
+template <int Dim>
+AdaptCounts BlockForest<Dim>::adapt(std::span<const AdaptTag> tags) {
+  if (tags.size() != leaves_.size())
+    throw std::invalid_argument("BlockForest::adapt: " + std::to_string(tags.size()) + " tags for " +
+                                std::to_string(leaves_.size()) + " leaves");
+  const std::size_t n = leaves_.size();
+  std::vector<char> refine(n, 0);
+  std::vector<std::size_t> work;
+  for (std::size_t i = 0; i < n; ++i)
+    if (tags[i] == AdaptTag::kRefine && leaves_[i].level < config_.max_level) {
+      refine[i] = 1;
+      work.push_back(i);
+    }
+  // A refined leaf would sit two levels above a coarser neighbour: refine that one too, and so on.
+  std::vector<Neighbour<Dim>> around;
+  while (!work.empty()) {
+    const std::size_t i = work.back();
+    work.pop_back();
+    neighbours(leaves_[i], around);
+    for (const auto& nb : around) {
+      if (nb.level_difference != -1) continue;
+      const std::size_t j = index_.at(nb.key);
+      if (!refine[j]) {
+        refine[j] = 1;
+        work.push_back(j);
+      }
+    }
+  }
+
+  // A family coarsens when all its members are leaves asking for it, none is refined, and the
+  // parent would not touch anything finer than the family's level after this refinement.
+  std::vector<char> coarsen(n, 0);
+  AdaptCounts counts;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Key& first = leaves_[i];
+    if (first.level == 0 || first.child_index() != 0 || tags[i] != AdaptTag::kCoarsen || refine[i]) continue;
+    const Key parent = first.parent();
+    std::array<std::size_t, Key::kChildren> members{};
+    bool ok = true;
+    for (int k = 0; k < Key::kChildren && ok; ++k) {
+      const auto j = find(parent.child(k));
+      ok = j && tags[*j] == AdaptTag::kCoarsen && !refine[*j];
+      if (ok) members[static_cast<std::size_t>(k)] = *j;
+    }
+    for (int k = 0; k < Key::kChildren && ok; ++k) {
+      neighbours(leaves_[members[static_cast<std::size_t>(k)]], around);
+      for (const auto& nb : around) {
+        const bool finer_after = nb.level_difference == +1 || (nb.level_difference == 0 && refine[index_.at(nb.key)]);
+        if (finer_after) {
+          ok = false;
+          break;
+        }
+      }
+    }
+    if (!ok) continue;
+    for (std::size_t j : members) coarsen[j] = 1;
+    ++counts.coarsened;
+  }
+
+  std::vector<Key> next;
+  next.reserve(n + static_cast<std::size_t>(std::count(refine.begin(), refine.end(), 1)) * Key::kChildren);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (refine[i]) {
+      for (int k = 0; k < Key::kChildren; ++k) next.push_back(leaves_[i].child(k));
+      ++counts.refined;
+    } else if (coarsen[i]) {
+      if (leaves_[i].child_index() == 0) next.push_back(leaves_[i].parent());
+    } else {
+      next.push_back(leaves_[i]);
+    }
+  }
+  leaves_ = std::move(next);
+  sort_and_index();
+  return counts;
+}
+
+template <int Dim>
+bool BlockForest<Dim>::is_balanced() const {
+  for (const Key& leaf : leaves_) {
+    for (const auto& dir : directions<Dim>()) {
+      const auto beyond = shifted(leaf, dir);
+      if (!beyond) continue;
+      int found = -1;
+      Key probe = *beyond;
+      for (int level = leaf.level; level >= 0; --level, probe = probe.parent()) {
+        if (is_leaf(probe)) {
+          found = level;
+          break;
+        }
+      }
+      if (found >= 0) {
+        if (leaf.level - found > 1) return false;
+        continue;
+      }
+      // Covered by finer leaves: those touching us must be leaves one level down, no deeper.
+      if (leaf.level == config_.max_level) return false;
+      for (int k = 0; k < Key::kChildren; ++k)
+        if (child_faces_back<Dim>(k, dir) && !is_leaf(beyond->child(k))) return false;
+    }
+  }
+  return true;
+}
+
+template <int Dim>
+bool BlockForest<Dim>::tiles_domain() const {
+  // Volume in root-block units must add up to the number of roots, and no leaf may lie inside
+  // another (an ancestor that is also a leaf), nor outside the box.
+  std::vector<double> per_level(static_cast<std::size_t>(config_.max_level + 1), 0.0);
+  for (const Key& leaf : leaves_) {
+    if (leaf.level < 0 || leaf.level > config_.max_level) return false;
+    const auto c = leaf.coords();
+    for (int a = 0; a < Dim; ++a)
+      if (c[static_cast<std::size_t>(a)] >= blocks_along(a, leaf.level)) return false;
+    for (Key up = leaf; up.level > 0;) {
+      up = up.parent();
+      if (is_leaf(up)) return false;
+    }
+    per_level[static_cast<std::size_t>(leaf.level)] += 1.0;
+  }
+  double volume = 0.0;
+  for (int l = 0; l <= config_.max_level; ++l) volume += std::ldexp(per_level[static_cast<std::size_t>(l)], -Dim * l);
+  double roots = 1.0;
+  for (int r : config_.roots) roots *= r;
+  return volume == roots && index_.size() == leaves_.size();
+}
+
+template <int Dim>
+std::uint64_t BlockForest<Dim>::curve_index(const Key& key) const {
+  auto anchor = key.coords();
+  for (auto& c : anchor) c <<= (config_.max_level - key.level);
+  if (config_.curve == CurveOrder::kMorton) return Key::from_coords(config_.max_level, anchor).morton;
+  return hilbert_index<Dim>(anchor, curve_bits_);
+}
+
+template <int Dim>
+std::vector<std::size_t> BlockForest<Dim>::partition(int ranks) const {
+  if (ranks < 1) throw std::invalid_argument("BlockForest::partition: need at least one rank");
+  std::vector<std::size_t> offsets(static_cast<std::size_t>(ranks) + 1);
+  for (int r = 0; r <= ranks; ++r)
+    offsets[static_cast<std::size_t>(r)] = leaves_.size() * static_cast<std::size_t>(r) / static_cast<std::size_t>(ranks);
+  return offsets;
+}
+
+template <int Dim>
+void BlockForest<Dim>::sort_and_index() {
+  std::vector<std::pair<std::uint64_t, Key>> order;
+  order.reserve(leaves_.size());
+  for (const Key& k : leaves_) order.emplace_back(curve_index(k), k);
+  std::sort(order.begin(), order.end());
+  index_.clear();
+  index_.reserve(order.size());
+  for (std::size_t i = 0; i < order.size(); ++i) {
+    leaves_[i] = order[i].second;
+    index_.emplace(leaves_[i], i);
+  }
+}
+
+template std::uint64_t hilbert_index<1>(std::array<std::uint32_t, 1>, int);
+template std::uint64_t hilbert_index<2>(std::array<std::uint32_t, 2>, int);
+template std::uint64_t hilbert_index<3>(std::array<std::uint32_t, 3>, int);
+template class BlockForest<1>;
+template class BlockForest<2>;
+template class BlockForest<3>;
+
+}  // namespace grainwave::wavelet

@@ -1,0 +1,115 @@
+#pragma once
+// Topology of the block forest (metadata only, no field data): which blocks exist, who their
+// neighbours are across faces, edges and corners, how tags refine and coarsen them under 2:1
+// balance, and how they are ordered along a space-filling curve and cut into contiguous chunks
+// for P ranks (design.md "The adaptive grid"; the p4est/WABBIT model of a replicated light
+// forest whose block data is distributed along the curve).
+//
+// Conventions (see BlockKey.hpp for coordinates):
+// - The domain is a box of roots[0] x ... root blocks, each axis periodic or not.
+// - `leaves()` is always sorted along the configured curve (Morton or Hilbert over the anchors
+//   of the blocks at max_level); indices into it are the "leaf indices" used by tags and owners.
+// - A direction is a vector in {-1, 0, 1}^Dim, not all zero: one nonzero entry is a face, two an
+//   edge (3D) or corner (2D), three a corner (3D).
+// - 2:1 balance: leaves that touch (across faces, edges or corners, periodic images included)
+//   differ by at most one level. Every public mutation keeps it.
+#include "wavelet/BlockKey.hpp"
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <unordered_map>
+#include <vector>
+
+namespace grainwave::wavelet {
+
+enum class CurveOrder { kMorton, kHilbert };
+
+/// Per-leaf adaptation request. Coarsening happens only for complete families of leaves that
+/// all ask for it and whose parent would stay 2:1 balanced; refinement may spread to coarser
+/// neighbours to keep the balance.
+enum class AdaptTag : std::int8_t { kCoarsen = -1, kKeep = 0, kRefine = 1 };
+
+template <int Dim>
+struct ForestConfig {
+  std::array<int, Dim> roots{};     ///< root blocks per axis (all >= 1)
+  std::array<bool, Dim> periodic{};
+  int max_level = 4;                ///< finest block level (root level is 0)
+  CurveOrder curve = CurveOrder::kHilbert;
+};
+
+template <int Dim>
+struct Neighbour {
+  BlockKey<Dim> key;
+  int level_difference = 0;  ///< neighbour level minus own level: -1 coarser, 0 same, +1 finer
+  std::array<int, Dim> direction{};
+};
+
+struct AdaptCounts {
+  int refined = 0;    ///< leaves replaced by their children
+  int coarsened = 0;  ///< families replaced by their parent
+};
+
+template <int Dim>
+class BlockForest {
+ public:
+  using Key = BlockKey<Dim>;
+
+  /// The root forest: every root block a leaf at level 0.
+  explicit BlockForest(ForestConfig<Dim> config);
+
+  const ForestConfig<Dim>& config() const { return config_; }
+  std::span<const Key> leaves() const { return leaves_; }
+  std::size_t size() const { return leaves_.size(); }
+  std::optional<std::size_t> find(const Key& key) const;
+  bool is_leaf(const Key& key) const { return index_.contains(key); }
+
+  /// Blocks along axis a at a level, and the same-level key shifted by `direction` (wrapped on
+  /// periodic axes; empty when it leaves a non-periodic domain).
+  std::uint32_t blocks_along(int axis, int level) const {
+    return static_cast<std::uint32_t>(config_.roots[static_cast<std::size_t>(axis)]) << level;
+  }
+  std::optional<Key> shifted(const Key& key, const std::array<int, Dim>& direction) const;
+
+  /// All neighbouring leaves of a leaf across faces, edges and corners (up to 2^(Dim-1) finer
+  /// ones per face). Relies on 2:1 balance. `out` is cleared and reused.
+  void neighbours(const Key& leaf, std::vector<Neighbour<Dim>>& out) const;
+  std::vector<Neighbour<Dim>> neighbours(const Key& leaf) const {
+    std::vector<Neighbour<Dim>> out;
+    neighbours(leaf, out);
+    return out;
+  }
+
+  /// Refine/coarsen by one tag per leaf (in leaves() order), then enforce 2:1 balance.
+  AdaptCounts adapt(std::span<const AdaptTag> tags);
+
+  /// Independent checks (used by tests): 2:1 balance found without assuming it, and the leaves
+  /// tile the domain exactly once.
+  bool is_balanced() const;
+  bool tiles_domain() const;
+
+  /// Position along the configured curve, comparable across levels.
+  std::uint64_t curve_index(const Key& key) const;
+  /// P+1 offsets into leaves(): rank r owns [offsets[r], offsets[r+1]); chunk sizes differ by <= 1.
+  std::vector<std::size_t> partition(int ranks) const;
+
+ private:
+  void sort_and_index();
+
+  ForestConfig<Dim> config_;
+  int curve_bits_ = 0;  // bits per axis of anchors at max_level
+  std::vector<Key> leaves_;
+  std::unordered_map<Key, std::size_t, BlockKeyHash<Dim>> index_;
+};
+
+/// Hilbert index of a point with `bits` bits per coordinate (Skilling's transpose method,
+/// AIP Conf. Proc. 707, 2004). Dim = 1 returns the coordinate.
+template <int Dim>
+std::uint64_t hilbert_index(std::array<std::uint32_t, Dim> point, int bits);
+
+extern template class BlockForest<1>;
+extern template class BlockForest<2>;
+extern template class BlockForest<3>;
+
+}  // namespace grainwave::wavelet
