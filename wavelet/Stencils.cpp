@@ -124,7 +124,7 @@ void DerivativeOperator<Dim>::apply(const DerivativeStencil1D& op, double scale,
         for (int k = 0; k < row.width; ++k) sum += row.weight[static_cast<std::size_t>(k)] * in[i + row.first + k];
         res[i] = scale * sum;
       }
-    } else {
+    } else if constexpr (Dim > 1) {  // (Dim 1 has only axis 0; this keeps -Warray-bounds quiet)
       // One row for the whole x-line: sweep it weight by weight so the inner loop is contiguous.
       const StencilRow& row = op.row(at[static_cast<std::size_t>(axis)]);
       for (int i = 0; i < n0; ++i) res[i] = 0.0;
