@@ -7,6 +7,7 @@
 #include <limits>
 #include <numbers>
 #include <numeric>
+#include <type_traits>
 #include <unordered_map>
 
 #include "core/Mpi.hpp"
@@ -334,36 +335,34 @@ std::vector<std::size_t> id_order(const ParticleStore& s) {
   return order;
 }
 
-void write_vectors(io::Hdf5Group& g, const std::string& name, const std::vector<Vec3>& v,
+/// Writes one per-particle array in `order`: 3 components for vectors, 1 for scalars.
+template <class T>
+void write_ordered(io::Hdf5Group& g, const std::string& name, const std::vector<T>& values,
                    const std::vector<std::size_t>& order) {
+  constexpr bool is_vector = std::is_same_v<T, Vec3>;
   std::vector<double> flat;
-  flat.reserve(3 * order.size());
-  for (auto i : order) flat.insert(flat.end(), {v[i].x(), v[i].y(), v[i].z()});
-  g.write_rows(name, flat.data(), order.size(), 3);
-}
-
-void write_scalars(io::Hdf5Group& g, const std::string& name, const std::vector<double>& v,
-                   const std::vector<std::size_t>& order) {
-  std::vector<double> flat;
-  flat.reserve(order.size());
-  for (auto i : order) flat.push_back(v[i]);
-  g.write_rows(name, flat.data(), order.size(), 1);
+  flat.reserve((is_vector ? 3 : 1) * order.size());
+  for (auto i : order) {
+    if constexpr (is_vector) flat.insert(flat.end(), {values[i].x(), values[i].y(), values[i].z()});
+    else flat.push_back(values[i]);
+  }
+  g.write_rows(name, flat.data(), order.size(), is_vector ? 3 : 1);
 }
 
 void write_store(io::Hdf5Group& g, const ParticleStore& s, bool full) {
   const auto order = id_order(s);
-  write_vectors(g, "position", s.position, order);
-  write_vectors(g, "velocity", s.velocity, order);
-  write_vectors(g, "angular_velocity", s.angular_velocity, order);
-  write_scalars(g, "radius", s.radius, order);
+  write_ordered(g, "position", s.position, order);
+  write_ordered(g, "velocity", s.velocity, order);
+  write_ordered(g, "angular_velocity", s.angular_velocity, order);
+  write_ordered(g, "radius", s.radius, order);
   std::vector<std::int64_t> ids;
   for (auto i : order) ids.push_back(s.id[i]);
   g.write_rows("id", ids.data(), ids.size(), 1);
   if (full) {
-    write_scalars(g, "mass", s.mass, order);
-    write_scalars(g, "inertia", s.inertia, order);
-    write_vectors(g, "force", s.force, order);
-    write_vectors(g, "torque", s.torque, order);
+    write_ordered(g, "mass", s.mass, order);
+    write_ordered(g, "inertia", s.inertia, order);
+    write_ordered(g, "force", s.force, order);
+    write_ordered(g, "torque", s.torque, order);
     std::vector<std::int64_t> flags;
     for (auto i : order) flags.push_back(s.flags[i]);
     g.write_rows("flags", flags.data(), flags.size(), 1);
