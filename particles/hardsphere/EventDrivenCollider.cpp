@@ -1,0 +1,307 @@
+#include "particles/hardsphere/EventDrivenCollider.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+#include "particles/hardsphere/CollisionTime.hpp"
+
+namespace grainwave::particles::hardsphere {
+
+namespace {
+
+constexpr double kNever = std::numeric_limits<double>::infinity();
+
+/// First t >= 0 at which g(t) = c + b t + a t^2 reaches 0 while decreasing (g >= 0 is "inside").
+/// g already negative (round-off put the particle past the bound) means: now.
+double first_exit(double c, double b, double a) {
+  if (c < 0.0) return 0.0;
+  if (a == 0.0) return b < 0.0 ? -c / b : kNever;
+  const double discriminant = b * b - 4.0 * a * c;
+  if (discriminant < 0.0) return kNever;
+  const double q = -0.5 * (b + std::copysign(std::sqrt(discriminant), b));
+  if (q == 0.0) return a < 0.0 ? 0.0 : kNever;  // b = c = 0: leaves at once iff pulled outward
+  double best = kNever;
+  for (double t : {q / a, c / q}) {
+    if (t >= 0.0 && b + 2.0 * a * t < 0.0) best = std::min(best, t);
+  }
+  return best;
+}
+
+}  // namespace
+
+EventDrivenCollider::EventDrivenCollider(EventDrivenSettings settings) : settings_(settings) {
+  validate(settings_.law, "hardsphere");
+}
+
+void EventDrivenCollider::push(const Event& e) {
+  heap_.push_back(e);
+  std::push_heap(heap_.begin(), heap_.end(), std::greater<Event>());
+}
+
+int EventDrivenCollider::cell_index(const std::array<int, 3>& c) const {
+  return (c[2] * cells_[1] + c[1]) * cells_[0] + c[0];
+}
+
+void EventDrivenCollider::sync(ParticleStore& store, int i, double t) {
+  const auto k = static_cast<std::size_t>(i);
+  const double tau = t - clock_[k];
+  if (tau == 0.0) return;
+  const Vec3 a = store.is_fixed(k) ? Vec3::Zero() : acceleration_;
+  store.position[k] += store.velocity[k] * tau + 0.5 * a * tau * tau;
+  store.velocity[k] += a * tau;
+  store.angular_velocity[k] += angular_acceleration_[k] * tau;
+  clock_[k] = t;
+}
+
+double EventDrivenCollider::next_crossing(const ParticleStore& store, int i, int* face) const {
+  const auto k = static_cast<std::size_t>(i);
+  const double tau = now_ - clock_[k];
+  const Vec3 a = store.is_fixed(k) ? Vec3::Zero() : acceleration_;
+  const Vec3 x = store.position[k] + store.velocity[k] * tau + 0.5 * a * tau * tau;
+  const Vec3 v = store.velocity[k] + a * tau;
+  double best = kNever;
+  for (int axis = 0; axis < dimension_; ++axis) {
+    const auto ax = static_cast<std::size_t>(axis);
+    const int c = cell_of_[k][ax];
+    const double lower = lo_[axis] + c * cell_size_[ax];
+    const double upper = lo_[axis] + (c + 1) * cell_size_[ax];
+    // Leaving through a wall face is impossible (the wall collision comes first).
+    if (c > 0 || periodic_[ax]) {
+      const double t = first_exit(x[axis] - lower, v[axis], 0.5 * a[axis]);
+      if (t < best) { best = t; *face = 2 * axis; }
+    }
+    if (c < cells_[ax] - 1 || periodic_[ax]) {
+      const double t = first_exit(upper - x[axis], -v[axis], -0.5 * a[axis]);
+      if (t < best) { best = t; *face = 2 * axis + 1; }
+    }
+  }
+  return best;
+}
+
+void EventDrivenCollider::predict(const ParticleStore& store, const Domain& domain, int i,
+                                  bool higher_only) {
+  const auto k = static_cast<std::size_t>(i);
+  int face = 0;
+  const double window = next_crossing(store, i, &face);
+  horizon_[k] = now_ + window;
+  if (window < kNever) push(Event{now_ + window, i, kCrossing - face, counter_[k], 0});
+
+  const double tau = now_ - clock_[k];
+  const bool fixed = store.is_fixed(k);
+  const Vec3 a = fixed ? Vec3::Zero() : acceleration_;
+  const Vec3 x = store.position[k] + store.velocity[k] * tau + 0.5 * a * tau * tau;
+  const Vec3 v = store.velocity[k] + a * tau;
+  const double r = store.radius[k];
+  const auto& c = cell_of_[k];
+
+  if (!fixed) {
+    for (int axis = 0; axis < dimension_; ++axis) {
+      const auto ax = static_cast<std::size_t>(axis);
+      for (int side = 0; side < 2; ++side) {
+        if (!wall_[ax][static_cast<std::size_t>(side)]) continue;
+        if (c[ax] != (side == 0 ? 0 : cells_[ax] - 1)) continue;  // only from boundary cells
+        const double sign = side == 0 ? 1.0 : -1.0;
+        const double plane = side == 0 ? lo_[axis] : lo_[axis] + length_[axis];
+        // The gap to the wall is a quadratic in t: its first decreasing zero, in closed form.
+        const double t = first_exit(sign * (x[axis] - plane) - r, sign * v[axis], 0.5 * sign * a[axis]);
+        if (t < kNever && t <= window) push(Event{now_ + t, i, -1 - (2 * axis + side), counter_[k], 0});
+      }
+    }
+  }
+
+  const int reach_z = dimension_ == 3 ? 1 : 0;
+  for (int dz = -reach_z; dz <= reach_z; ++dz) {
+    for (int dy = -1; dy <= 1; ++dy) {
+      for (int dx = -1; dx <= 1; ++dx) {
+        std::array<int, 3> n{c[0] + dx, c[1] + dy, c[2] + dz};
+        bool inside = true;
+        for (std::size_t ax = 0; ax < 3; ++ax) {
+          if (n[ax] >= 0 && n[ax] < cells_[ax]) continue;
+          if (periodic_[ax]) n[ax] = (n[ax] + cells_[ax]) % cells_[ax];
+          else inside = false;
+        }
+        if (!inside) continue;
+        for (int j = head_[static_cast<std::size_t>(cell_index(n))]; j >= 0;
+             j = next_[static_cast<std::size_t>(j)]) {
+          if (j == i || (higher_only && j < i)) continue;
+          const auto m = static_cast<std::size_t>(j);
+          if (fixed && store.is_fixed(m)) continue;
+          const double tau_j = now_ - clock_[m];
+          const Vec3 a_j = store.is_fixed(m) ? Vec3::Zero() : acceleration_;
+          const Vec3 x_j = store.position[m] + store.velocity[m] * tau_j + 0.5 * a_j * tau_j * tau_j;
+          const Vec3 v_j = store.velocity[m] + a_j * tau_j;
+          const auto t = ballistic_contact_time(domain.separation(x, x_j), v_j - v, r + store.radius[m]);
+          if (t && *t <= window) push(Event{now_ + *t, i, j, counter_[k], counter_[m]});
+        }
+      }
+    }
+  }
+}
+
+void EventDrivenCollider::schedule_all(const ParticleStore& store, const Domain& domain) {
+  heap_.clear();
+  for (std::size_t i = 0; i < store.size(); ++i) predict(store, domain, static_cast<int>(i), true);
+}
+
+void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain, double start_time) {
+  const std::size_t n = store.size();
+  now_ = start_time;
+  dimension_ = domain.dimension;
+  lo_ = domain.lo;
+  length_ = domain.length();
+  double max_radius = 0.0;
+  bool any_fixed = false, first = true;
+  for (std::size_t i = 0; i < n; ++i) {
+    max_radius = std::max(max_radius, store.radius[i]);
+    if (store.is_fixed(i)) { any_fixed = true; continue; }
+    const Vec3 a = store.force[i] / store.mass[i];
+    if (first) { acceleration_ = a; first = false; }
+    if ((a - acceleration_).norm() > 1e-14 * (1.0 + acceleration_.norm())) {
+      throw std::invalid_argument("EventDrivenCollider: particles must share one acceleration");
+    }
+  }
+  if (first) acceleration_.setZero();
+  if (any_fixed && !acceleration_.isZero(0.0)) {
+    throw std::invalid_argument("EventDrivenCollider: fixed particles need zero acceleration");
+  }
+  for (int k = 0; k < 3; ++k) {
+    const auto ax = static_cast<std::size_t>(k);
+    wall_[ax] = {false, false};
+    if (k >= dimension_) {
+      cells_[ax] = 1;
+      cell_size_[ax] = 1.0;
+      periodic_[ax] = false;
+      continue;
+    }
+    for (std::size_t side = 0; side < 2; ++side) {
+      if (domain.face[ax][side] == FaceKind::kOpen) {
+        throw std::invalid_argument("EventDrivenCollider: open faces are not supported");
+      }
+      wall_[ax][side] = domain.face[ax][side] == FaceKind::kWall;
+    }
+    periodic_[ax] = domain.periodic(k);
+    cells_[ax] = std::max(1, static_cast<int>(std::floor(length_[k] / (2.0 * max_radius))));
+    if (periodic_[ax] && cells_[ax] < 3) {
+      throw std::invalid_argument("EventDrivenCollider: periodic axis " + std::to_string(k) +
+                                  " must span at least three diameters");
+    }
+    cell_size_[ax] = length_[k] / cells_[ax];
+  }
+  const auto n_cells = static_cast<std::size_t>(cells_[0] * cells_[1] * cells_[2]);
+  head_.assign(n_cells, -1);
+  next_.assign(n, -1);
+  prev_.assign(n, -1);
+  cell_of_.resize(n);
+  clock_.assign(n, now_);
+  counter_.assign(n, 0u);
+  horizon_.assign(n, kNever);
+  angular_acceleration_.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    angular_acceleration_[i] = store.torque[i] * store.inverse_inertia(i);
+    domain.wrap(store.position[i]);
+    for (std::size_t ax = 0; ax < 3; ++ax) {
+      const auto k = static_cast<int>(ax);
+      const double s = (store.position[i][k] - lo_[k]) / cell_size_[ax];
+      cell_of_[i][ax] = k >= dimension_ ? 0 : std::clamp(static_cast<int>(std::floor(s)), 0, cells_[ax] - 1);
+    }
+    const auto cell = static_cast<std::size_t>(cell_index(cell_of_[i]));
+    next_[i] = head_[cell];
+    if (head_[cell] >= 0) prev_[static_cast<std::size_t>(head_[cell])] = static_cast<int>(i);
+    head_[cell] = static_cast<int>(i);
+  }
+  schedule_all(store, domain);
+}
+
+EventStats EventDrivenCollider::advance_to(ParticleStore& store, const Domain& domain, double target) {
+  EventStats stats;
+  const std::size_t n = store.size();
+  if (n != clock_.size()) throw std::logic_error("EventDrivenCollider: store changed size");
+  while (!heap_.empty() && heap_.front().time <= target) {
+    std::pop_heap(heap_.begin(), heap_.end(), std::greater<Event>());
+    const Event e = heap_.back();
+    heap_.pop_back();
+    const auto a = static_cast<std::size_t>(e.a);
+    const bool pair = e.b >= 0;
+    if (counter_[a] != e.count_a || (pair && counter_[static_cast<std::size_t>(e.b)] != e.count_b)) {
+      ++stats.stale_events;
+      continue;
+    }
+    now_ = e.time;
+    if (e.b <= kCrossing) {
+      const int face = kCrossing - e.b;
+      const int axis = face / 2;
+      const auto ax = static_cast<std::size_t>(axis);
+      const int step = face % 2 == 0 ? -1 : 1;
+      sync(store, e.a, now_);
+      // Unlink from the old cell.
+      const auto old_cell = static_cast<std::size_t>(cell_index(cell_of_[a]));
+      if (prev_[a] >= 0) next_[static_cast<std::size_t>(prev_[a])] = next_[a];
+      else head_[old_cell] = next_[a];
+      if (next_[a] >= 0) prev_[static_cast<std::size_t>(next_[a])] = prev_[a];
+      int c = cell_of_[a][ax] + step;
+      if (c < 0) c += cells_[ax];
+      if (c >= cells_[ax]) c -= cells_[ax];
+      cell_of_[a][ax] = c;
+      // Snap onto the shared face (wrapped) so the new cell's exit test starts exactly at 0.
+      store.position[a][axis] = lo_[axis] + (step > 0 ? c : c + 1) * cell_size_[ax];
+      const auto new_cell = static_cast<std::size_t>(cell_index(cell_of_[a]));
+      prev_[a] = -1;
+      next_[a] = head_[new_cell];
+      if (head_[new_cell] >= 0) prev_[static_cast<std::size_t>(head_[new_cell])] = e.a;
+      head_[new_cell] = e.a;
+      ++stats.cell_crossings;
+      predict(store, domain, e.a, false);
+    } else {
+      sync(store, e.a, now_);
+      Body body_a;
+      body_a.velocity = store.velocity[a];
+      body_a.angular_velocity = store.angular_velocity[a];
+      body_a.inverse_mass = store.inverse_mass(a);
+      body_a.inverse_inertia = store.inverse_inertia(a);
+      body_a.radius = store.radius[a];
+      Body body_b;
+      Vec3 normal;
+      const auto b = static_cast<std::size_t>(pair ? e.b : 0);
+      if (pair) {
+        sync(store, e.b, now_);
+        body_b.velocity = store.velocity[b];
+        body_b.angular_velocity = store.angular_velocity[b];
+        body_b.inverse_mass = store.inverse_mass(b);
+        body_b.inverse_inertia = store.inverse_inertia(b);
+        body_b.radius = store.radius[b];
+        normal = domain.separation(store.position[a], store.position[b]).normalized();
+      } else {
+        const int face = -1 - e.b;
+        normal = Vec3::Zero();
+        normal[face / 2] = face % 2 == 0 ? -1.0 : 1.0;
+      }
+      const CollisionImpulse impulse = collide(body_a, body_b, normal, settings_.law);
+      if (!impulse.approaching) continue;
+      store.velocity[a] = body_a.velocity;
+      store.angular_velocity[a] = body_a.angular_velocity;
+      ++counter_[a];
+      if (pair) {
+        store.velocity[b] = body_b.velocity;
+        store.angular_velocity[b] = body_b.angular_velocity;
+        ++counter_[b];
+        ++stats.collisions;
+      } else {
+        ++stats.wall_hits;
+      }
+      if (log_) log_->push_back(CollisionRecord{now_, store.id[a], pair ? store.id[b] : e.b});
+      predict(store, domain, e.a, false);
+      if (pair) predict(store, domain, e.b, false);
+    }
+    // Stale events pile up; rebuilding the calendar from scratch keeps it O(N).
+    if (heap_.size() > 16 * n + 1024) schedule_all(store, domain);
+  }
+  now_ = target;
+  for (std::size_t i = 0; i < n; ++i) sync(store, static_cast<int>(i), target);
+  return stats;
+}
+
+}  // namespace grainwave::particles::hardsphere
