@@ -48,21 +48,23 @@ int EventDrivenCollider::cell_index(const std::array<int, 3>& c) const {
 
 void EventDrivenCollider::sync(ParticleStore& store, int i, double t) {
   const auto k = static_cast<std::size_t>(i);
-  const double tau = t - clock_[k];
+  Flight& f = flight_[k];
+  const double tau = t - f.clock;
   if (tau == 0.0) return;
-  const Vec3 a = store.is_fixed(k) ? Vec3::Zero() : acceleration_;
-  store.position[k] += store.velocity[k] * tau + 0.5 * a * tau * tau;
-  store.velocity[k] += a * tau;
+  // Fixed particles exist only with zero acceleration (initialize), so one a serves all.
+  f.position += f.velocity * tau + 0.5 * acceleration_ * tau * tau;
+  f.velocity += acceleration_ * tau;
   store.angular_velocity[k] += angular_acceleration_[k] * tau;
-  clock_[k] = t;
+  f.clock = t;
 }
 
-double EventDrivenCollider::next_crossing(const ParticleStore& store, int i, int* face) const {
+double EventDrivenCollider::next_crossing(const ParticleStore& /*store*/, int i, int* face) const {
   const auto k = static_cast<std::size_t>(i);
-  const double tau = now_ - clock_[k];
-  const Vec3 a = store.is_fixed(k) ? Vec3::Zero() : acceleration_;
-  const Vec3 x = store.position[k] + store.velocity[k] * tau + 0.5 * a * tau * tau;
-  const Vec3 v = store.velocity[k] + a * tau;
+  const Flight& f = flight_[k];
+  const double tau = now_ - f.clock;
+  const Vec3& a = acceleration_;
+  const Vec3 x = f.position + f.velocity * tau + 0.5 * a * tau * tau;
+  const Vec3 v = f.velocity + a * tau;
   double best = kNever;
   for (int axis = 0; axis < dimension_; ++axis) {
     const auto ax = static_cast<std::size_t>(axis);
@@ -82,20 +84,21 @@ double EventDrivenCollider::next_crossing(const ParticleStore& store, int i, int
   return best;
 }
 
-void EventDrivenCollider::predict(const ParticleStore& store, const Domain& domain, int i,
+void EventDrivenCollider::predict(const ParticleStore& store, const Domain& /*domain*/, int i,
                                   bool higher_only) {
   const auto k = static_cast<std::size_t>(i);
+  ++predictions_;
   int face = 0;
   const double window = next_crossing(store, i, &face);
-  horizon_[k] = now_ + window;
   if (window < kNever) push(Event{now_ + window, i, kCrossing - face, counter_[k], 0});
 
-  const double tau = now_ - clock_[k];
+  const Flight& fi = flight_[k];
+  const double tau = now_ - fi.clock;
   const bool fixed = store.is_fixed(k);
-  const Vec3 a = fixed ? Vec3::Zero() : acceleration_;
-  const Vec3 x = store.position[k] + store.velocity[k] * tau + 0.5 * a * tau * tau;
-  const Vec3 v = store.velocity[k] + a * tau;
-  const double r = store.radius[k];
+  const Vec3& a = acceleration_;
+  const Vec3 x = fi.position + fi.velocity * tau + 0.5 * a * tau * tau;
+  const Vec3 v = fi.velocity + a * tau;
+  const double r = fi.radius;
   const auto& c = cell_of_[k];
 
   if (!fixed) {
@@ -113,31 +116,30 @@ void EventDrivenCollider::predict(const ParticleStore& store, const Domain& doma
     }
   }
 
-  const int reach_z = dimension_ == 3 ? 1 : 0;
-  for (int dz = -reach_z; dz <= reach_z; ++dz) {
-    for (int dy = -1; dy <= 1; ++dy) {
-      for (int dx = -1; dx <= 1; ++dx) {
-        std::array<int, 3> n{c[0] + dx, c[1] + dy, c[2] + dz};
-        bool inside = true;
-        for (std::size_t ax = 0; ax < 3; ++ax) {
-          if (n[ax] >= 0 && n[ax] < cells_[ax]) continue;
-          if (periodic_[ax]) n[ax] = (n[ax] + cells_[ax]) % cells_[ax];
-          else inside = false;
-        }
-        if (!inside) continue;
-        for (int j = head_[static_cast<std::size_t>(cell_index(n))]; j >= 0;
-             j = next_[static_cast<std::size_t>(j)]) {
-          if (j == i || (higher_only && j < i)) continue;
-          const auto m = static_cast<std::size_t>(j);
-          if (fixed && store.is_fixed(m)) continue;
-          const double tau_j = now_ - clock_[m];
-          const Vec3 a_j = store.is_fixed(m) ? Vec3::Zero() : acceleration_;
-          const Vec3 x_j = store.position[m] + store.velocity[m] * tau_j + 0.5 * a_j * tau_j * tau_j;
-          const Vec3 v_j = store.velocity[m] + a_j * tau_j;
-          const auto t = ballistic_contact_time(domain.separation(x, x_j), v_j - v, r + store.radius[m]);
-          if (t && *t <= window) push(Event{now_ + *t, i, j, counter_[k], counter_[m]});
-        }
+  // The whole stencil is rescanned even after a crossing: earlier predictions stopped at the
+  // crossing time (the window), so old neighbours need new predictions too.
+  const auto cell = static_cast<std::size_t>(cell_index(c));
+  for (int s = stencil_start_[cell]; s < stencil_start_[cell + 1]; ++s) {
+    for (int j = head_[static_cast<std::size_t>(stencil_[static_cast<std::size_t>(s)])]; j >= 0;
+         j = next_[static_cast<std::size_t>(j)]) {
+      if (j == i || (higher_only && j < i)) continue;
+      ++pair_checks_;
+      const auto m = static_cast<std::size_t>(j);
+      const Flight& fj = flight_[m];
+      const double tau_j = now_ - fj.clock;
+      // Uniform acceleration cancels in the relative motion: only velocities differ.
+      Vec3 d = fj.position + fj.velocity * tau_j + 0.5 * a * tau_j * tau_j - x;
+      for (int axis = 0; axis < dimension_; ++axis) {  // minimum image (Domain::separation)
+        if (!periodic_[static_cast<std::size_t>(axis)]) continue;
+        const double length = length_[axis];
+        if (d[axis] > 0.5 * length) d[axis] -= length;
+        else if (d[axis] < -0.5 * length) d[axis] += length;
       }
+      const Vec3 u = fj.velocity + a * tau_j - v;
+      if (d.dot(u) >= 0.0) continue;  // receding
+      if (fixed && store.is_fixed(m)) continue;
+      const auto t = ballistic_contact_time(d, u, r + fj.radius);
+      if (t && *t <= window) push(Event{now_ + *t, i, j, counter_[k], counter_[m]});
     }
   }
 }
@@ -192,20 +194,43 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
     cell_size_[ax] = length_[k] / cells_[ax];
   }
   const auto n_cells = static_cast<std::size_t>(cells_[0] * cells_[1] * cells_[2]);
+  // Adjacent cells of every cell (itself included), wrapped across periodic faces.
+  stencil_start_.assign(n_cells + 1, 0);
+  stencil_.clear();
+  const int reach_z = dimension_ == 3 ? 1 : 0;
+  for (int cz = 0; cz < cells_[2]; ++cz)
+    for (int cy = 0; cy < cells_[1]; ++cy)
+      for (int cx = 0; cx < cells_[0]; ++cx) {
+        for (int dz = -reach_z; dz <= reach_z; ++dz)
+          for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx) {
+              std::array<int, 3> nb{cx + dx, cy + dy, cz + dz};
+              bool inside = true;
+              for (std::size_t ax = 0; ax < 3; ++ax) {
+                if (nb[ax] >= 0 && nb[ax] < cells_[ax]) continue;
+                if (periodic_[ax]) nb[ax] = (nb[ax] + cells_[ax]) % cells_[ax];
+                else inside = false;
+              }
+              if (inside) stencil_.push_back(cell_index(nb));
+            }
+        stencil_start_[static_cast<std::size_t>(cell_index({cx, cy, cz})) + 1] =
+            static_cast<int>(stencil_.size());
+      }
   head_.assign(n_cells, -1);
   next_.assign(n, -1);
   prev_.assign(n, -1);
   cell_of_.resize(n);
-  clock_.assign(n, now_);
+  flight_.resize(n);
   counter_.assign(n, 0u);
   horizon_.assign(n, kNever);
   angular_acceleration_.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
     angular_acceleration_[i] = store.torque[i] * store.inverse_inertia(i);
     domain.wrap(store.position[i]);
+    flight_[i] = Flight{store.position[i], now_, store.velocity[i], store.radius[i]};
     for (std::size_t ax = 0; ax < 3; ++ax) {
       const auto k = static_cast<int>(ax);
-      const double s = (store.position[i][k] - lo_[k]) / cell_size_[ax];
+      const double s = (flight_[i].position[k] - lo_[k]) / cell_size_[ax];
       cell_of_[i][ax] = k >= dimension_ ? 0 : std::clamp(static_cast<int>(std::floor(s)), 0, cells_[ax] - 1);
     }
     const auto cell = static_cast<std::size_t>(cell_index(cell_of_[i]));
@@ -218,8 +243,9 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
 
 EventStats EventDrivenCollider::advance_to(ParticleStore& store, const Domain& domain, double target) {
   EventStats stats;
+  predictions_ = pair_checks_ = 0;
   const std::size_t n = store.size();
-  if (n != clock_.size()) throw std::logic_error("EventDrivenCollider: store changed size");
+  if (n != flight_.size()) throw std::logic_error("EventDrivenCollider: store changed size");
   while (!heap_.empty() && heap_.front().time <= target) {
     std::pop_heap(heap_.begin(), heap_.end(), std::greater<Event>());
     const Event e = heap_.back();
@@ -247,7 +273,7 @@ EventStats EventDrivenCollider::advance_to(ParticleStore& store, const Domain& d
       if (c >= cells_[ax]) c -= cells_[ax];
       cell_of_[a][ax] = c;
       // Snap onto the shared face (wrapped) so the new cell's exit test starts exactly at 0.
-      store.position[a][axis] = lo_[axis] + (step > 0 ? c : c + 1) * cell_size_[ax];
+      flight_[a].position[axis] = lo_[axis] + (step > 0 ? c : c + 1) * cell_size_[ax];
       const auto new_cell = static_cast<std::size_t>(cell_index(cell_of_[a]));
       prev_[a] = -1;
       next_[a] = head_[new_cell];
@@ -258,7 +284,7 @@ EventStats EventDrivenCollider::advance_to(ParticleStore& store, const Domain& d
     } else {
       sync(store, e.a, now_);
       Body body_a;
-      body_a.velocity = store.velocity[a];
+      body_a.velocity = flight_[a].velocity;
       body_a.angular_velocity = store.angular_velocity[a];
       body_a.inverse_mass = store.inverse_mass(a);
       body_a.inverse_inertia = store.inverse_inertia(a);
@@ -268,12 +294,12 @@ EventStats EventDrivenCollider::advance_to(ParticleStore& store, const Domain& d
       const auto b = static_cast<std::size_t>(pair ? e.b : 0);
       if (pair) {
         sync(store, e.b, now_);
-        body_b.velocity = store.velocity[b];
+        body_b.velocity = flight_[b].velocity;
         body_b.angular_velocity = store.angular_velocity[b];
         body_b.inverse_mass = store.inverse_mass(b);
         body_b.inverse_inertia = store.inverse_inertia(b);
         body_b.radius = store.radius[b];
-        normal = domain.separation(store.position[a], store.position[b]).normalized();
+        normal = domain.separation(flight_[a].position, flight_[b].position).normalized();
       } else {
         const int face = -1 - e.b;
         normal = Vec3::Zero();
@@ -281,11 +307,11 @@ EventStats EventDrivenCollider::advance_to(ParticleStore& store, const Domain& d
       }
       const CollisionImpulse impulse = collide(body_a, body_b, normal, settings_.law);
       if (!impulse.approaching) continue;
-      store.velocity[a] = body_a.velocity;
+      flight_[a].velocity = body_a.velocity;
       store.angular_velocity[a] = body_a.angular_velocity;
       ++counter_[a];
       if (pair) {
-        store.velocity[b] = body_b.velocity;
+        flight_[b].velocity = body_b.velocity;
         store.angular_velocity[b] = body_b.angular_velocity;
         ++counter_[b];
         ++stats.collisions;
@@ -299,8 +325,14 @@ EventStats EventDrivenCollider::advance_to(ParticleStore& store, const Domain& d
     // Stale events pile up; rebuilding the calendar from scratch keeps it O(N).
     if (heap_.size() > 16 * n + 1024) schedule_all(store, domain);
   }
+  stats.predictions = predictions_;
+  stats.pair_checks = pair_checks_;
   now_ = target;
-  for (std::size_t i = 0; i < n; ++i) sync(store, static_cast<int>(i), target);
+  for (std::size_t i = 0; i < n; ++i) {
+    sync(store, static_cast<int>(i), target);
+    store.position[i] = flight_[i].position;
+    store.velocity[i] = flight_[i].velocity;
+  }
   return stats;
 }
 

@@ -31,7 +31,8 @@ struct EventStats {
   long wall_hits = 0;
   long cell_crossings = 0;
   long stale_events = 0;
-  long predictions = 0;
+  long predictions = 0;  ///< particles re-predicted
+  long pair_checks = 0;  ///< partner candidates examined while predicting
 };
 
 class EventDrivenCollider {
@@ -44,8 +45,9 @@ class EventDrivenCollider {
   void initialize(ParticleStore& store, const Domain& domain, double start_time = 0.0);
 
   /// Processes every event up to `target` and leaves all particles synchronised at `target`
-  /// (positions wrapped into the box). The store must be the one passed to initialize(), with
-  /// no particles added or removed since.
+  /// (positions wrapped into the box) and written back to the store. The store must be the one
+  /// passed to initialize(); after changing it from outside (particles, velocities, forces),
+  /// call initialize() again.
   EventStats advance_to(ParticleStore& store, const Domain& domain, double target);
 
   double time() const { return now_; }
@@ -63,7 +65,16 @@ class EventDrivenCollider {
     bool operator>(const Event& other) const { return time > other.time; }
   };
 
+  /// Compact per-particle flight state (one cache line): what the pair scan reads.
+  struct Flight {
+    Vec3 position;
+    double clock;  ///< time at which position and velocity are valid
+    Vec3 velocity;
+    double radius;
+  };
+
   void sync(ParticleStore& store, int i, double t);
+  /// Schedules particle i's next events up to its next cell crossing.
   void predict(const ParticleStore& store, const Domain& domain, int i, bool higher_only);
   void schedule_all(const ParticleStore& store, const Domain& domain);
   void push(const Event& e);
@@ -82,13 +93,15 @@ class EventDrivenCollider {
   std::array<int, 3> cells_{1, 1, 1};
   std::array<bool, 3> periodic_{true, true, true};
   std::array<std::array<bool, 2>, 3> wall_{};
-  std::vector<double> clock_;                   ///< time at which the stored state is valid
+  std::vector<Flight> flight_;                  ///< authoritative x, v while events are pending
   std::vector<std::uint32_t> counter_;          ///< collisions so far (stale-event test)
   std::vector<std::array<int, 3>> cell_of_;     ///< current cell of each particle
   std::vector<double> horizon_;                 ///< absolute time of its next cell crossing
   std::vector<int> head_, next_, prev_;         ///< doubly linked particles per cell
+  std::vector<int> stencil_start_, stencil_;    ///< adjacent cells of each cell (CSR)
   std::vector<Vec3> angular_acceleration_;
   std::vector<Event> heap_;
+  long predictions_ = 0, pair_checks_ = 0;
 };
 
 }  // namespace grainwave::particles::hardsphere
