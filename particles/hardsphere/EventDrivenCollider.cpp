@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <functional>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -16,9 +15,10 @@ namespace {
 constexpr double kNever = std::numeric_limits<double>::infinity();
 
 /// First t >= 0 at which g(t) = c + b t + a t^2 reaches 0 while decreasing (g >= 0 is "inside").
-/// g already negative (round-off put the particle past the bound) means: now.
-double first_exit(double c, double b, double a) {
-  if (c < 0.0) return 0.0;
+/// With g already negative: `outside_is_now` (a particle past a cell face: cross at once), or
+/// else the next descending zero (a particle a round-off into a wall but leaving it: no contact).
+double first_descent(double c, double b, double a, bool outside_is_now) {
+  if (c < 0.0 && (outside_is_now || b < 0.0)) return 0.0;
   if (a == 0.0) return b < 0.0 ? -c / b : kNever;
   const double discriminant = b * b - 4.0 * a * c;
   if (discriminant < 0.0) return kNever;
@@ -37,13 +37,38 @@ EventDrivenCollider::EventDrivenCollider(EventDrivenSettings settings) : setting
   validate(settings_.law, "hardsphere");
 }
 
-void EventDrivenCollider::push(const Event& e) {
-  heap_.push_back(e);
-  std::push_heap(heap_.begin(), heap_.end(), std::greater<Event>());
-}
-
 int EventDrivenCollider::cell_index(const std::array<int, 3>& c) const {
   return (c[2] * cells_[1] + c[1]) * cells_[0] + c[0];
+}
+
+double EventDrivenCollider::key(int i) const {
+  const Pending& p = pending_[static_cast<std::size_t>(i)];
+  return std::min(p.collision_time, p.crossing_time);
+}
+
+void EventDrivenCollider::heap_update(int i) {
+  auto place = [&](int slot, const HeapEntry& entry) {
+    heap_[static_cast<std::size_t>(slot)] = entry;
+    heap_position_[static_cast<std::size_t>(entry.particle)] = slot;
+  };
+  const HeapEntry entry{key(i), i};
+  int slot = heap_position_[static_cast<std::size_t>(i)];
+  while (slot > 0) {  // sift up
+    const int parent = (slot - 1) / 2;
+    if (!(heap_[static_cast<std::size_t>(parent)].time > entry.time)) break;
+    place(slot, heap_[static_cast<std::size_t>(parent)]);
+    slot = parent;
+  }
+  const int n = static_cast<int>(heap_.size());
+  while (true) {  // sift down
+    int child = 2 * slot + 1;
+    if (child >= n) break;
+    if (child + 1 < n && heap_[static_cast<std::size_t>(child + 1)].time < heap_[static_cast<std::size_t>(child)].time) ++child;
+    if (!(heap_[static_cast<std::size_t>(child)].time < entry.time)) break;
+    place(slot, heap_[static_cast<std::size_t>(child)]);
+    slot = child;
+  }
+  place(slot, entry);
 }
 
 void EventDrivenCollider::sync(ParticleStore& store, int i, double t) {
@@ -58,49 +83,86 @@ void EventDrivenCollider::sync(ParticleStore& store, int i, double t) {
   f.clock = t;
 }
 
-double EventDrivenCollider::next_crossing(const ParticleStore& /*store*/, int i, int* face) const {
+double EventDrivenCollider::next_crossing(int i, const Vec3& x, const Vec3& v, int* face) const {
   const auto k = static_cast<std::size_t>(i);
-  const Flight& f = flight_[k];
-  const double tau = now_ - f.clock;
   const Vec3& a = acceleration_;
-  const Vec3 x = f.position + f.velocity * tau + 0.5 * a * tau * tau;
-  const Vec3 v = f.velocity + a * tau;
   double best = kNever;
   for (int axis = 0; axis < dimension_; ++axis) {
     const auto ax = static_cast<std::size_t>(axis);
     const int c = cell_of_[k][ax];
-    const double lower = lo_[axis] + c * cell_size_[ax];
-    const double upper = lo_[axis] + (c + 1) * cell_size_[ax];
     // Leaving through a wall face is impossible (the wall collision comes first).
     if (c > 0 || periodic_[ax]) {
-      const double t = first_exit(x[axis] - lower, v[axis], 0.5 * a[axis]);
+      const double lower = lo_[axis] + c * cell_size_[ax];
+      const double t = first_descent(x[axis] - lower, v[axis], 0.5 * a[axis], true);
       if (t < best) { best = t; *face = 2 * axis; }
     }
     if (c < cells_[ax] - 1 || periodic_[ax]) {
-      const double t = first_exit(upper - x[axis], -v[axis], -0.5 * a[axis]);
+      const double upper = lo_[axis] + (c + 1) * cell_size_[ax];
+      const double t = first_descent(upper - x[axis], -v[axis], -0.5 * a[axis], true);
       if (t < best) { best = t; *face = 2 * axis + 1; }
     }
   }
   return best;
 }
 
-void EventDrivenCollider::predict(const ParticleStore& store, const Domain& /*domain*/, int i,
-                                  bool higher_only) {
-  const auto k = static_cast<std::size_t>(i);
-  ++predictions_;
-  int face = 0;
-  const double window = next_crossing(store, i, &face);
-  if (window < kNever) push(Event{now_ + window, i, kCrossing - face, counter_[k], 0});
+template <bool kAccelerated>
+void EventDrivenCollider::scan_cell(int i, int cell, const Vec3& x, const Vec3& v, Pending& p) {
+  const Vec3& a = acceleration_;
+  const double r = flight_[static_cast<std::size_t>(i)].radius;
+  for (int j = head_[static_cast<std::size_t>(cell)]; j >= 0; j = next_[static_cast<std::size_t>(j)]) {
+    if (j == i) continue;
+    ++pair_checks_;
+    const Flight& fj = flight_[static_cast<std::size_t>(j)];
+    const double tau = now_ - fj.clock;
+    // Uniform acceleration cancels in the relative motion: only velocities differ.
+    Vec3 d = fj.position + fj.velocity * tau - x;
+    Vec3 u = fj.velocity - v;
+    if constexpr (kAccelerated) {
+      d += 0.5 * a * tau * tau;
+      u += a * tau;
+    }
+    for (int axis = 0; axis < dimension_; ++axis) {  // minimum image (Domain::separation)
+      if (!periodic_[static_cast<std::size_t>(axis)]) continue;
+      const double length = length_[axis];
+      if (d[axis] > 0.5 * length) d[axis] -= length;
+      else if (d[axis] < -0.5 * length) d[axis] += length;
+    }
+    const double b = d.dot(u);
+    if (b >= 0.0) continue;  // receding
+    // The contact time c / (-b + sqrt(b^2 - u.u c)) is at least c / (2|b|): skip the square
+    // root when even that bound is later than the best candidate so far.
+    const double sigma = r + fj.radius;
+    const double c = d.squaredNorm() - sigma * sigma;
+    if (c > -2.0 * b * (p.collision_time - now_)) continue;
+    const auto t = ballistic_contact_time(d, u, sigma);
+    if (t && now_ + *t < p.collision_time) {
+      p.collision_time = now_ + *t;
+      p.partner = j;
+      p.partner_count = counter_[static_cast<std::size_t>(j)];
+    }
+  }
+}
 
+void EventDrivenCollider::scan(int i, int cell, const Vec3& x, const Vec3& v, Pending& p) {
+  if (accelerated_) scan_cell<true>(i, cell, x, v, p);
+  else scan_cell<false>(i, cell, x, v, p);
+}
+
+void EventDrivenCollider::predict(const ParticleStore& store, int i, int layer) {
+  const auto k = static_cast<std::size_t>(i);
+  Pending& p = pending_[k];
   const Flight& fi = flight_[k];
   const double tau = now_ - fi.clock;
-  const bool fixed = store.is_fixed(k);
   const Vec3& a = acceleration_;
   const Vec3 x = fi.position + fi.velocity * tau + 0.5 * a * tau * tau;
   const Vec3 v = fi.velocity + a * tau;
-  const double r = fi.radius;
   const auto& c = cell_of_[k];
-
+  const bool fixed = store.is_fixed(k);
+  if (layer < 0) {
+    ++predictions_;
+    p.collision_time = kNever;
+    p.partner = kNoPartner;
+  }
   if (!fixed) {
     for (int axis = 0; axis < dimension_; ++axis) {
       const auto ax = static_cast<std::size_t>(axis);
@@ -110,43 +172,50 @@ void EventDrivenCollider::predict(const ParticleStore& store, const Domain& /*do
         const double sign = side == 0 ? 1.0 : -1.0;
         const double plane = side == 0 ? lo_[axis] : lo_[axis] + length_[axis];
         // The gap to the wall is a quadratic in t: its first decreasing zero, in closed form.
-        const double t = first_exit(sign * (x[axis] - plane) - r, sign * v[axis], 0.5 * sign * a[axis]);
-        if (t < kNever && t <= window) push(Event{now_ + t, i, -1 - (2 * axis + side), counter_[k], 0});
+        const double t = first_descent(sign * (x[axis] - plane) - fi.radius, sign * v[axis],
+                                       0.5 * sign * a[axis], false);
+        if (now_ + t < p.collision_time) {
+          p.collision_time = now_ + t;
+          p.partner = -1 - (2 * axis + side);
+        }
       }
     }
   }
-
-  // The whole stencil is rescanned even after a crossing: earlier predictions stopped at the
-  // crossing time (the window), so old neighbours need new predictions too.
   const auto cell = static_cast<std::size_t>(cell_index(c));
-  for (int s = stencil_start_[cell]; s < stencil_start_[cell + 1]; ++s) {
-    for (int j = head_[static_cast<std::size_t>(stencil_[static_cast<std::size_t>(s)])]; j >= 0;
-         j = next_[static_cast<std::size_t>(j)]) {
-      if (j == i || (higher_only && j < i)) continue;
-      ++pair_checks_;
-      const auto m = static_cast<std::size_t>(j);
-      const Flight& fj = flight_[m];
-      const double tau_j = now_ - fj.clock;
-      // Uniform acceleration cancels in the relative motion: only velocities differ.
-      Vec3 d = fj.position + fj.velocity * tau_j + 0.5 * a * tau_j * tau_j - x;
-      for (int axis = 0; axis < dimension_; ++axis) {  // minimum image (Domain::separation)
-        if (!periodic_[static_cast<std::size_t>(axis)]) continue;
-        const double length = length_[axis];
-        if (d[axis] > 0.5 * length) d[axis] -= length;
-        else if (d[axis] < -0.5 * length) d[axis] += length;
+  if (layer < 0) {
+    for (int s = stencil_start_[cell]; s < stencil_start_[cell + 1]; ++s) {
+      scan(i, stencil_[static_cast<std::size_t>(s)], x, v, p);
+    }
+  } else {
+    // Only the layer ahead of the crossed face is new; the rest was scanned before.
+    const int along = layer / 2;
+    const int ahead = layer % 2 == 0 ? -1 : 1;
+    const int reach_z = dimension_ == 3 ? 1 : 0;
+    for (int dz = -reach_z; dz <= reach_z; ++dz) {
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dx = -1; dx <= 1; ++dx) {
+          std::array<int, 3> offset{dx, dy, dz};
+          if (offset[static_cast<std::size_t>(along)] != ahead) continue;
+          std::array<int, 3> nb{c[0] + dx, c[1] + dy, c[2] + dz};
+          bool inside = true;
+          for (std::size_t ax = 0; ax < 3; ++ax) {
+            if (nb[ax] >= 0 && nb[ax] < cells_[ax]) continue;
+            if (periodic_[ax]) nb[ax] = (nb[ax] + cells_[ax]) % cells_[ax];
+            else inside = false;
+          }
+          if (inside) scan(i, cell_index(nb), x, v, p);
+        }
       }
-      const Vec3 u = fj.velocity + a * tau_j - v;
-      if (d.dot(u) >= 0.0) continue;  // receding
-      if (fixed && store.is_fixed(m)) continue;
-      const auto t = ballistic_contact_time(d, u, r + fj.radius);
-      if (t && *t <= window) push(Event{now_ + *t, i, j, counter_[k], counter_[m]});
     }
   }
-}
-
-void EventDrivenCollider::schedule_all(const ParticleStore& store, const Domain& domain) {
-  heap_.clear();
-  for (std::size_t i = 0; i < store.size(); ++i) predict(store, domain, static_cast<int>(i), true);
+  if (fixed && p.partner >= 0 && store.is_fixed(static_cast<std::size_t>(p.partner))) {
+    p.collision_time = kNever;  // two immovable particles never collide (fixed ones are at rest)
+    p.partner = kNoPartner;
+  }
+  int face = 0;
+  p.crossing_time = now_ + next_crossing(i, x, v, &face);
+  p.crossing_face = face;
+  heap_update(i);
 }
 
 void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain, double start_time) {
@@ -167,6 +236,7 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
     }
   }
   if (first) acceleration_.setZero();
+  accelerated_ = !acceleration_.isZero(0.0);
   if (any_fixed && !acceleration_.isZero(0.0)) {
     throw std::invalid_argument("EventDrivenCollider: fixed particles need zero acceleration");
   }
@@ -222,9 +292,13 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
   cell_of_.resize(n);
   flight_.resize(n);
   counter_.assign(n, 0u);
-  horizon_.assign(n, kNever);
+  pending_.assign(n, Pending{kNever, kNever, kNoPartner, 0u, 0});
   angular_acceleration_.resize(n);
+  heap_.resize(n);
+  heap_position_.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
+    heap_[i] = HeapEntry{kNever, static_cast<int>(i)};
+    heap_position_[i] = static_cast<int>(i);
     angular_acceleration_[i] = store.torque[i] * store.inverse_inertia(i);
     domain.wrap(store.position[i]);
     flight_[i] = Flight{store.position[i], now_, store.velocity[i], store.radius[i]};
@@ -238,7 +312,7 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
     if (head_[cell] >= 0) prev_[static_cast<std::size_t>(head_[cell])] = static_cast<int>(i);
     head_[cell] = static_cast<int>(i);
   }
-  schedule_all(store, domain);
+  for (std::size_t i = 0; i < n; ++i) predict(store, static_cast<int>(i), -1);
 }
 
 EventStats EventDrivenCollider::advance_to(ParticleStore& store, const Domain& domain, double target) {
@@ -246,24 +320,17 @@ EventStats EventDrivenCollider::advance_to(ParticleStore& store, const Domain& d
   predictions_ = pair_checks_ = 0;
   const std::size_t n = store.size();
   if (n != flight_.size()) throw std::logic_error("EventDrivenCollider: store changed size");
-  while (!heap_.empty() && heap_.front().time <= target) {
-    std::pop_heap(heap_.begin(), heap_.end(), std::greater<Event>());
-    const Event e = heap_.back();
-    heap_.pop_back();
-    const auto a = static_cast<std::size_t>(e.a);
-    const bool pair = e.b >= 0;
-    if (counter_[a] != e.count_a || (pair && counter_[static_cast<std::size_t>(e.b)] != e.count_b)) {
-      ++stats.stale_events;
-      continue;
-    }
-    now_ = e.time;
-    if (e.b <= kCrossing) {
-      const int face = kCrossing - e.b;
+  while (!heap_.empty() && heap_[0].time <= target) {
+    const int i = heap_[0].particle;
+    const auto a = static_cast<std::size_t>(i);
+    Pending& p = pending_[a];
+    now_ = key(i);
+    if (p.crossing_time <= p.collision_time) {
+      const int face = p.crossing_face;
       const int axis = face / 2;
       const auto ax = static_cast<std::size_t>(axis);
       const int step = face % 2 == 0 ? -1 : 1;
-      sync(store, e.a, now_);
-      // Unlink from the old cell.
+      sync(store, i, now_);
       const auto old_cell = static_cast<std::size_t>(cell_index(cell_of_[a]));
       if (prev_[a] >= 0) next_[static_cast<std::size_t>(prev_[a])] = next_[a];
       else head_[old_cell] = next_[a];
@@ -277,53 +344,58 @@ EventStats EventDrivenCollider::advance_to(ParticleStore& store, const Domain& d
       const auto new_cell = static_cast<std::size_t>(cell_index(cell_of_[a]));
       prev_[a] = -1;
       next_[a] = head_[new_cell];
-      if (head_[new_cell] >= 0) prev_[static_cast<std::size_t>(head_[new_cell])] = e.a;
-      head_[new_cell] = e.a;
+      if (head_[new_cell] >= 0) prev_[static_cast<std::size_t>(head_[new_cell])] = i;
+      head_[new_cell] = i;
       ++stats.cell_crossings;
-      predict(store, domain, e.a, false);
-    } else {
-      sync(store, e.a, now_);
-      Body body_a;
-      body_a.velocity = flight_[a].velocity;
-      body_a.angular_velocity = store.angular_velocity[a];
-      body_a.inverse_mass = store.inverse_mass(a);
-      body_a.inverse_inertia = store.inverse_inertia(a);
-      body_a.radius = store.radius[a];
-      Body body_b;
-      Vec3 normal;
-      const auto b = static_cast<std::size_t>(pair ? e.b : 0);
-      if (pair) {
-        sync(store, e.b, now_);
-        body_b.velocity = flight_[b].velocity;
-        body_b.angular_velocity = store.angular_velocity[b];
-        body_b.inverse_mass = store.inverse_mass(b);
-        body_b.inverse_inertia = store.inverse_inertia(b);
-        body_b.radius = store.radius[b];
-        normal = domain.separation(flight_[a].position, flight_[b].position).normalized();
-      } else {
-        const int face = -1 - e.b;
-        normal = Vec3::Zero();
-        normal[face / 2] = face % 2 == 0 ? -1.0 : 1.0;
-      }
-      const CollisionImpulse impulse = collide(body_a, body_b, normal, settings_.law);
-      if (!impulse.approaching) continue;
-      flight_[a].velocity = body_a.velocity;
-      store.angular_velocity[a] = body_a.angular_velocity;
-      ++counter_[a];
-      if (pair) {
-        flight_[b].velocity = body_b.velocity;
-        store.angular_velocity[b] = body_b.angular_velocity;
-        ++counter_[b];
-        ++stats.collisions;
-      } else {
-        ++stats.wall_hits;
-      }
-      if (log_) log_->push_back(CollisionRecord{now_, store.id[a], pair ? store.id[b] : e.b});
-      predict(store, domain, e.a, false);
-      if (pair) predict(store, domain, e.b, false);
+      const bool stale = p.partner >= 0 && counter_[static_cast<std::size_t>(p.partner)] != p.partner_count;
+      stats.stale_events += stale ? 1 : 0;
+      predict(store, i, stale ? -1 : face);
+      continue;
     }
-    // Stale events pile up; rebuilding the calendar from scratch keeps it O(N).
-    if (heap_.size() > 16 * n + 1024) schedule_all(store, domain);
+    const int partner = p.partner;
+    const bool pair = partner >= 0;
+    const auto b = static_cast<std::size_t>(pair ? partner : 0);
+    if (pair && counter_[b] != p.partner_count) {
+      ++stats.stale_events;
+      predict(store, i, -1);
+      continue;
+    }
+    sync(store, i, now_);
+    Body body_a;
+    body_a.velocity = flight_[a].velocity;
+    body_a.angular_velocity = store.angular_velocity[a];
+    body_a.inverse_mass = store.inverse_mass(a);
+    body_a.inverse_inertia = store.inverse_inertia(a);
+    body_a.radius = flight_[a].radius;
+    Body body_b;
+    Vec3 normal = Vec3::Zero();
+    if (pair) {
+      sync(store, partner, now_);
+      body_b.velocity = flight_[b].velocity;
+      body_b.angular_velocity = store.angular_velocity[b];
+      body_b.inverse_mass = store.inverse_mass(b);
+      body_b.inverse_inertia = store.inverse_inertia(b);
+      body_b.radius = flight_[b].radius;
+      normal = domain.separation(flight_[a].position, flight_[b].position).normalized();
+    } else {
+      const int face = -1 - partner;
+      normal[face / 2] = face % 2 == 0 ? -1.0 : 1.0;
+    }
+    const CollisionImpulse impulse = collide(body_a, body_b, normal, settings_.law);
+    ++counter_[a];  // even a grazing no-op: the rescan below must not return the same contact
+    flight_[a].velocity = body_a.velocity;
+    store.angular_velocity[a] = body_a.angular_velocity;
+    if (pair) {
+      ++counter_[b];
+      flight_[b].velocity = body_b.velocity;
+      store.angular_velocity[b] = body_b.angular_velocity;
+    }
+    if (impulse.approaching) {
+      ++(pair ? stats.collisions : stats.wall_hits);
+      if (log_) log_->push_back(CollisionRecord{now_, store.id[a], pair ? store.id[b] : partner});
+    }
+    predict(store, i, -1);
+    if (pair) predict(store, partner, -1);
   }
   stats.predictions = predictions_;
   stats.pair_checks = pair_checks_;

@@ -2,16 +2,19 @@
 // Event-driven hard spheres for equal accelerations (none, or gravity alone): 002 §2.3.3 notes
 // that then Eq. 2.26 reduces to a quadratic and the system can be advanced collision by
 // collision (Alder & Wainwright; Rapaport, "The Art of Molecular Dynamics Simulation", ch. 14;
-// Lubachevsky 1991 for lazy per-particle clocks).
+// Lubachevsky 1991 for lazy per-particle clocks and one pending event per particle).
 //
 // Relative motion of any two particles is uniform, so a pair's contact time is the closed-form
 // smaller root of |d + u t| = sigma (CollisionTime.hpp). Each particle keeps its own clock: its
-// state is stored at the time of its last event and extrapolated with Eqs 2.11–2.13 when needed.
-// Events live in one calendar (binary heap): pair collisions, wall collisions and cell crossings,
-// cells at least one largest diameter wide. A particle predicts only up to its next cell crossing,
-// where it re-predicts against the cells that have become adjacent; every contact is still found,
-// because the partners are adjacent from the later of their last events on. A collision bumps both
-// particles' counters, which marks all their older events stale. Impulses: CollisionImpulse.hpp.
+// state is stored at the time of its last event and extrapolated with Eqs 2.11–2.13 on demand.
+// Cells are at least one largest diameter wide. Each particle holds only its earliest predicted
+// collision (partner or wall, with the partner's collision counter at prediction time) and its
+// next cell crossing; an indexed binary heap over particles orders them. Why this is complete:
+// every pair that will touch is adjacent from the later of the partners' last events on, and each
+// of those events scans the cells that became adjacent (all 27 after a collision, the new layer
+// of 9 after a crossing); a candidate whose partner has collided since is stale and triggers a
+// full rescan of that particle when its time comes. Impulses: CollisionImpulse.hpp.
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -30,9 +33,9 @@ struct EventStats {
   long collisions = 0;
   long wall_hits = 0;
   long cell_crossings = 0;
-  long stale_events = 0;
-  long predictions = 0;  ///< particles re-predicted
-  long pair_checks = 0;  ///< partner candidates examined while predicting
+  long stale_events = 0;  ///< candidates invalidated by the partner's other collision
+  long predictions = 0;   ///< full 27-cell rescans
+  long pair_checks = 0;   ///< partner candidates examined
 };
 
 class EventDrivenCollider {
@@ -41,7 +44,7 @@ class EventDrivenCollider {
 
   /// Takes over the store at time `start_time`: checks that every particle has the same
   /// acceleration F/m (throws std::invalid_argument otherwise, or for open faces), bins the
-  /// particles and schedules the first events.
+  /// particles and predicts their first events.
   void initialize(ParticleStore& store, const Domain& domain, double start_time = 0.0);
 
   /// Processes every event up to `target` and leaves all particles synchronised at `target`
@@ -55,15 +58,7 @@ class EventDrivenCollider {
   void record_collisions(std::vector<CollisionRecord>* log) { log_ = log; }
 
  private:
-  enum : int { kCrossing = -1000 };  ///< b = kCrossing - (2 axis + direction); walls: -1 - face
-  struct Event {
-    double time;
-    int a;
-    int b;
-    std::uint32_t count_a;
-    std::uint32_t count_b;
-    bool operator>(const Event& other) const { return time > other.time; }
-  };
+  static constexpr int kNoPartner = -1000;  ///< partners >= 0 are particles, -1 - face are walls
 
   /// Compact per-particle flight state (one cache line): what the pair scan reads.
   struct Flight {
@@ -72,19 +67,33 @@ class EventDrivenCollider {
     Vec3 velocity;
     double radius;
   };
+  /// The particle's pending events: earliest predicted collision and next cell crossing.
+  struct Pending {
+    double collision_time;
+    double crossing_time;
+    int partner;
+    std::uint32_t partner_count;
+    int crossing_face;  ///< 2 axis + (0 low, 1 high)
+  };
 
   void sync(ParticleStore& store, int i, double t);
-  /// Schedules particle i's next events up to its next cell crossing.
-  void predict(const ParticleStore& store, const Domain& domain, int i, bool higher_only);
-  void schedule_all(const ParticleStore& store, const Domain& domain);
-  void push(const Event& e);
+  /// Rescans all adjacent cells and walls (layer < 0), or after a crossing only the cells that
+  /// became adjacent (layer = crossed face), keeping the earlier of old and new candidates.
+  void predict(const ParticleStore& store, int i, int layer);
+  /// Updates p with the earliest contact of i with the particles of `cell`.
+  void scan(int i, int cell, const Vec3& x, const Vec3& v, Pending& p);
+  template <bool kAccelerated>
+  void scan_cell(int i, int cell, const Vec3& x, const Vec3& v, Pending& p);
   int cell_index(const std::array<int, 3>& c) const;
-  /// Time from now until particle i leaves its cell and across which face; +inf if never.
-  double next_crossing(const ParticleStore& store, int i, int* face) const;
+  /// Time from now until particle i leaves its cell, and across which face; +inf if never.
+  double next_crossing(int i, const Vec3& x, const Vec3& v, int* face) const;
+  double key(int i) const;
+  void heap_update(int i);
 
   EventDrivenSettings settings_;
   std::vector<CollisionRecord>* log_ = nullptr;
   Vec3 acceleration_ = Vec3::Zero();
+  bool accelerated_ = false;
   double now_ = 0.0;
   int dimension_ = 3;
   Vec3 lo_ = Vec3::Zero();
@@ -93,14 +102,19 @@ class EventDrivenCollider {
   std::array<int, 3> cells_{1, 1, 1};
   std::array<bool, 3> periodic_{true, true, true};
   std::array<std::array<bool, 2>, 3> wall_{};
-  std::vector<Flight> flight_;                  ///< authoritative x, v while events are pending
-  std::vector<std::uint32_t> counter_;          ///< collisions so far (stale-event test)
-  std::vector<std::array<int, 3>> cell_of_;     ///< current cell of each particle
-  std::vector<double> horizon_;                 ///< absolute time of its next cell crossing
-  std::vector<int> head_, next_, prev_;         ///< doubly linked particles per cell
-  std::vector<int> stencil_start_, stencil_;    ///< adjacent cells of each cell (CSR)
+  std::vector<Flight> flight_;               ///< authoritative x, v while events are pending
+  std::vector<Pending> pending_;
+  std::vector<std::uint32_t> counter_;       ///< collisions so far (stale-candidate test)
+  std::vector<std::array<int, 3>> cell_of_;  ///< current cell of each particle
+  std::vector<int> head_, next_, prev_;      ///< doubly linked particles per cell
+  std::vector<int> stencil_start_, stencil_; ///< adjacent cells of each cell (CSR)
   std::vector<Vec3> angular_acceleration_;
-  std::vector<Event> heap_;
+  struct HeapEntry {
+    double time;  ///< key() of the particle, cached for the sift loops
+    int particle;
+  };
+  std::vector<HeapEntry> heap_;              ///< indexed binary min-heap of particles by key()
+  std::vector<int> heap_position_;
   long predictions_ = 0, pair_checks_ = 0;
 };
 
