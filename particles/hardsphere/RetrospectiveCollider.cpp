@@ -31,15 +31,15 @@ Body body_of(const ParticleStore& store, std::size_t i) {
   return b;
 }
 
-std::vector<std::pair<int, int>> walls_of(const Domain& domain) {
-  std::vector<std::pair<int, int>> faces;
+/// Calls visit(axis, side) for every wall face of the domain.
+template <class Visit>
+void for_each_wall(const Domain& domain, Visit&& visit) {
   for (int k = 0; k < domain.dimension; ++k) {
     for (int side = 0; side < 2; ++side) {
       if (domain.face[static_cast<std::size_t>(k)][static_cast<std::size_t>(side)] == FaceKind::kWall)
-        faces.emplace_back(k, side);
+        visit(k, side);
     }
   }
-  return faces;
 }
 
 }  // namespace
@@ -47,6 +47,7 @@ std::vector<std::pair<int, int>> walls_of(const Domain& domain) {
 RetrospectiveCollider::RetrospectiveCollider(RetrospectiveSettings settings)
     : settings_(settings) {
   validate(settings_.law, "hardsphere");
+  walls_.reserve(6);
 }
 
 void RetrospectiveCollider::push_event(const Event& e) {
@@ -68,6 +69,7 @@ void RetrospectiveCollider::find_candidates(const ParticleStore& store, const Do
                                             double margin) {
   const std::size_t n = store.size();
   candidate_pairs_.clear();
+  if (candidate_pairs_.capacity() < 8 * n) candidate_pairs_.reserve(16 * n);  // grows rarely
   cells_.build(store.position);
   cells_.for_each_pair([&](int i, int j) {
     const auto a = static_cast<std::size_t>(i), b = static_cast<std::size_t>(j);
@@ -147,6 +149,9 @@ bool RetrospectiveCollider::try_substep(ParticleStore& store, const Domain& doma
   heap_.clear();
 
   find_candidates(store, domain, margin_);
+  // Generous calendar capacity, so that the event loop itself does not reallocate once warm.
+  const std::size_t expected_events = 4 * (candidate_pairs_.size() + n * (walls_.size() + 1));
+  if (heap_.capacity() < expected_events) heap_.reserve(2 * expected_events);
   for (std::size_t i = 0; i < n; ++i) predict(store, domain, static_cast<int>(i), 0.0, h, true, stats);
 
   const long collisions_before = stats.collisions, walls_before = stats.wall_hits;
@@ -217,9 +222,9 @@ StepStats RetrospectiveCollider::step(ParticleStore& store, const Domain& domain
   StepStats stats;
   const std::size_t n = store.size();
   walls_.clear();
-  for (const auto& [axis, side] : walls_of(domain)) {
+  for_each_wall(domain, [&](int axis, int side) {
     walls_.push_back(Wall{axis, side, side == 0 ? domain.lo[axis] : domain.hi[axis]});
-  }
+  });
   start_position_.resize(n);
   start_velocity_.resize(n);
   start_spin_.resize(n);
@@ -307,13 +312,13 @@ double max_relative_overlap(const ParticleStore& store, const Domain& domain, Ce
                            domain.separation(store.position[a], store.position[b]).norm();
     worst = std::max(worst, overlap / std::min(store.radius[a], store.radius[b]));
   });
-  for (const auto& [axis, side] : walls_of(domain)) {
+  for_each_wall(domain, [&](int axis, int side) {
     for (std::size_t i = 0; i < store.size(); ++i) {
       const double gap = side == 0 ? store.position[i][axis] - domain.lo[axis]
                                    : domain.hi[axis] - store.position[i][axis];
       worst = std::max(worst, (store.radius[i] - gap) / store.radius[i]);
     }
-  }
+  });
   return worst;
 }
 
