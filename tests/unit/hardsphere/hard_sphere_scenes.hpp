@@ -40,6 +40,32 @@ inline double fcc_gas(ParticleStore& store, Domain& domain, int k, double phi, d
   return length;
 }
 
+/// Square lattice of k x k unit-diameter disks at area fraction phi (2D: z = 0), random in-plane
+/// velocities at temperature kT with zero total momentum, random spins about z.
+inline double disk_gas(ParticleStore& store, Domain& domain, int k, double phi, double kT,
+                       unsigned seed) {
+  const double pi = std::acos(-1.0), mass = 1.0, r = 0.5;
+  const double a = std::sqrt(pi * r * r / phi);
+  domain.dimension = 2;
+  domain.lo = Vec3::Zero();
+  domain.hi = Vec3(k * a, k * a, 0.0);
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> g(0.0, 1.0);
+  store.clear();
+  std::int64_t id = 0;
+  for (int ix = 0; ix < k; ++ix)
+    for (int iy = 0; iy < k; ++iy) {
+      store.add(id++, Vec3(a * (ix + 0.5), a * (iy + 0.5), 0.0),
+                std::sqrt(kT / mass) * Vec3(g(rng), g(rng), 0.0), Vec3(0, 0, g(rng)), r, mass,
+                solid_inertia(2, mass, r));
+    }
+  Vec3 mean = Vec3::Zero();
+  for (const Vec3& v : store.velocity) mean += v;
+  mean /= static_cast<double>(store.size());
+  for (Vec3& v : store.velocity) v -= mean;
+  return k * a;
+}
+
 inline double kinetic_energy(const ParticleStore& s) {
   double e = 0.0;
   for (std::size_t i = 0; i < s.size(); ++i) {
