@@ -6,6 +6,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "core/Error.hpp"
 #include "particles/hardsphere/CollisionTime.hpp"
 
 namespace grainwave::particles::hardsphere {
@@ -16,9 +17,14 @@ constexpr double kNever = std::numeric_limits<double>::infinity();
 
 /// First t >= 0 at which g(t) = c + b t + a t^2 reaches 0 while decreasing (g >= 0 is "inside").
 /// With g already negative: `outside_is_now` (a particle past a cell face: cross at once), or
-/// else the next descending zero (a particle a round-off into a wall but leaving it: no contact).
+/// else (a particle a round-off into a wall) the first moment it moves further in.
 double first_descent(double c, double b, double a, bool outside_is_now) {
-  if (c < 0.0 && (outside_is_now || b < 0.0)) return 0.0;
+  if (c < 0.0) {
+    if (outside_is_now || b < 0.0) return 0.0;
+    if (a >= 0.0) return kNever;                          // leaves for good
+    if (b * b - 4.0 * a * c < 0.0) return -b / (2.0 * a);  // turns round before getting out
+    // Otherwise it gets out, and the descending root below is its next contact.
+  }
   if (a == 0.0) return b < 0.0 ? -c / b : kNever;
   const double discriminant = b * b - 4.0 * a * c;
   if (discriminant < 0.0) return kNever;
@@ -292,6 +298,8 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
   cell_of_.resize(n);
   flight_.resize(n);
   counter_.assign(n, 0u);
+  burst_start_.assign(n, -kNever);
+  burst_count_.assign(n, 0u);
   pending_.assign(n, Pending{kNever, kNever, kNoPartner, 0u, 0});
   angular_acceleration_.resize(n);
   heap_.resize(n);
@@ -381,7 +389,27 @@ EventStats EventDrivenCollider::advance_to(ParticleStore& store, const Domain& d
       const int face = -1 - partner;
       normal[face / 2] = face % 2 == 0 ? -1.0 : 1.0;
     }
+    // Inelastic collapse (infinitely many collisions before a finite time, e.g. a ball with
+    // e < 1 settling on a floor) shows as bursts of collisions a few ulps apart: report it.
+    const double burst_span = 1e4 * std::numeric_limits<double>::epsilon() * std::max(1.0, std::abs(now_));
+    for (int member = 0; member < (pair ? 2 : 1); ++member) {
+      const std::size_t m = member == 0 ? a : b;
+      if (now_ - burst_start_[m] <= burst_span) {
+        if (++burst_count_[m] > kBurstLimit) {
+          throw NumericalFailure("hard-sphere collisions piled up at one instant (inelastic "
+                                 "collapse or a resting contact)", "EventDrivenCollider", now_, -1);
+        }
+      } else {
+        burst_start_[m] = now_;
+        burst_count_[m] = 0;
+      }
+    }
     const CollisionImpulse impulse = collide(body_a, body_b, normal, settings_.law);
+    if (!impulse.approaching && !pair && normal.dot(acceleration_) > 0.0) {
+      // Touching a wall without approaching it while pushed into it: a resting contact.
+      throw NumericalFailure("hard sphere at rest on a wall under a force pressing it in (resting "
+                             "contacts need a soft-sphere model)", "EventDrivenCollider", now_, -1);
+    }
     ++counter_[a];  // even a grazing no-op: the rescan below must not return the same contact
     flight_[a].velocity = body_a.velocity;
     store.angular_velocity[a] = body_a.angular_velocity;

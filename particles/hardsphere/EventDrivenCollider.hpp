@@ -48,7 +48,9 @@ class EventDrivenCollider {
   void initialize(ParticleStore& store, const Domain& domain, double start_time = 0.0);
 
   /// Processes every event up to `target` and leaves all particles synchronised at `target`
-  /// (positions wrapped into the box) and written back to the store. The store must be the one
+  /// (positions wrapped into the box) and written back to the store. Throws
+  /// grainwave::NumericalFailure when a particle collides hundreds of times within a few ulps of
+  /// time (inelastic collapse, resting contacts: hard spheres cannot represent them). The store must be the one
   /// passed to initialize(); after changing it from outside (particles, velocities, forces),
   /// call initialize() again.
   EventStats advance_to(ParticleStore& store, const Domain& domain, double target);
@@ -59,6 +61,7 @@ class EventDrivenCollider {
 
  private:
   static constexpr int kNoPartner = -1000;  ///< partners >= 0 are particles, -1 - face are walls
+  static constexpr std::uint32_t kBurstLimit = 256;  ///< collisions of one particle a few ulps apart
 
   /// Compact per-particle flight state (one cache line): what the pair scan reads.
   struct Flight {
@@ -105,6 +108,8 @@ class EventDrivenCollider {
   std::vector<Flight> flight_;               ///< authoritative x, v while events are pending
   std::vector<Pending> pending_;
   std::vector<std::uint32_t> counter_;       ///< collisions so far (stale-candidate test)
+  std::vector<double> burst_start_;          ///< collapse detection: start of the current burst
+  std::vector<std::uint32_t> burst_count_;
   std::vector<std::array<int, 3>> cell_of_;  ///< current cell of each particle
   std::vector<int> head_, next_, prev_;      ///< doubly linked particles per cell
   std::vector<int> stencil_start_, stencil_; ///< adjacent cells of each cell (CSR)

@@ -194,7 +194,17 @@ bool RetrospectiveCollider::try_substep(ParticleStore& store, const Domain& doma
       n_ab = domain.separation(store.position[a], store.position[b]).normalized();
     }
     const CollisionImpulse impulse = collide(body_a, body_b, n_ab, settings_.law);
-    if (!impulse.approaching) continue;
+    if (!impulse.approaching) {
+      // Touching without approaching: harmless if the forces do not press the pair together;
+      // otherwise it is a resting contact, which no impulse (and no subdivision) can resolve.
+      const Vec3 relative_acceleration = acceleration_[a] - (wall ? Vec3::Zero().eval() : acceleration_[b]);
+      if (n_ab.dot(relative_acceleration) > 0.0) {
+        throw NumericalFailure("hard spheres in resting contact under forces pressing them together "
+                               "(resting contacts need a soft-sphere model)",
+                               "RetrospectiveCollider", t_offset + e.time, -1);
+      }
+      continue;
+    }
     store.velocity[a] = body_a.velocity;
     store.angular_velocity[a] = body_a.angular_velocity;
     ++counter_[a];

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cstdio>
 
+#include "core/Error.hpp"
 #include "hard_sphere_scenes.hpp"
 #include "particles/hardsphere/EventDrivenCollider.hpp"
 #include "particles/hardsphere/RetrospectiveCollider.hpp"
@@ -60,6 +61,52 @@ TEST(EventDrivenCollider, BallBouncesOnFloorUnderGravity) {
   EXPECT_EQ(stats.wall_hits, 1);
   EXPECT_NEAR(s.position[0].y(), 1.25, 1e-13);
   EXPECT_NEAR(s.velocity[0].y(), 1.0, 1e-13);
+}
+
+// An elastic ball bouncing on a floor for many periods: the bounce height (energy) is kept, it
+// never sinks into the floor, and both colliders agree on the bounce times (period 2).
+TEST(EventDrivenCollider, ElasticBallKeepsBouncingForManyPeriods) {
+  gp::ParticleStore s;
+  add_sphere(s, Vec3(0, 1.5, 0), Vec3(0.3, 0, 0));
+  s.force[0] = Vec3(0, -2.0, 0);
+  gp::Domain d = cube(10, gp::FaceKind::kPeriodic);
+  d.lo.y() = 0.0;
+  d.face[1] = {gp::FaceKind::kWall, gp::FaceKind::kWall};
+  gp::ParticleStore s2 = s;
+  hs::EventDrivenCollider collider(hs::EventDrivenSettings{hs::CollisionLaw{1.0, 0.0}});
+  collider.initialize(s, d);
+  hs::RetrospectiveCollider retrospective(hs::RetrospectiveSettings{hs::CollisionLaw{1.0, 0.0}});
+  long hits = 0, hits2 = 0;
+  for (int k = 1; k <= 400; ++k) {
+    hits += collider.advance_to(s, d, 0.25 * k).wall_hits;
+    hits2 += retrospective.step(s2, d, 0.25).wall_hits;
+    for (const gp::ParticleStore* p : {&s, &s2}) {
+      const double y = p->position[0].y(), vy = p->velocity[0].y();
+      ASSERT_GE(y, 0.5 - 1e-12) << "step " << k;
+      ASSERT_NEAR(0.5 * vy * vy + 2.0 * y, 3.0, 1e-11) << "step " << k;  // v^2/2 + g y
+    }
+  }
+  EXPECT_EQ(hits, 50);  // first bounce at t = 1, then every 2 up to t = 100
+  EXPECT_EQ(hits2, 50);
+}
+
+// A ball with e < 1 on a floor bounces infinitely often before t* = finite (inelastic collapse).
+// Both colliders must report it instead of hanging.
+TEST(EventDrivenCollider, InelasticCollapseOnFloorIsReportedNotHung) {
+  gp::ParticleStore s;
+  add_sphere(s, Vec3(0, 1.5, 0), Vec3::Zero());
+  s.force[0] = Vec3(0, -2.0, 0);
+  gp::Domain d = cube(10, gp::FaceKind::kPeriodic);
+  d.lo.y() = 0.0;
+  d.face[1] = {gp::FaceKind::kWall, gp::FaceKind::kWall};
+  gp::ParticleStore s2 = s;
+  hs::EventDrivenCollider collider(hs::EventDrivenSettings{hs::CollisionLaw{0.5, 0.0}});
+  collider.initialize(s, d);
+  // Bounce k ends at t_k = 1 + 2 (e + ... + e^k): collapse at t* = 1 + 2 e / (1 - e) = 3.
+  EXPECT_NO_THROW(collider.advance_to(s, d, 2.9));
+  EXPECT_THROW(collider.advance_to(s, d, 4.0), grainwave::NumericalFailure);
+  hs::RetrospectiveCollider retrospective(hs::RetrospectiveSettings{hs::CollisionLaw{0.5, 0.0}});
+  EXPECT_THROW(retrospective.step(s2, d, 4.0), grainwave::NumericalFailure);
 }
 
 TEST(EventDrivenCollider, RejectsUnequalAccelerations) {
