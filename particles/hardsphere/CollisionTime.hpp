@@ -143,6 +143,18 @@ inline std::optional<double> ballistic_contact_time(const Eigen::Vector3d& d,
   return c / (-b + std::sqrt(discriminant));
 }
 
+/// The same root as ballistic_contact_time, +infinity when there is none, computed without
+/// data-dependent branches (the event-driven pair scan: about half the candidates recede, and
+/// mispredicted branches cost more than the always-taken square root).
+inline double ballistic_contact_time_or_never(const Eigen::Vector3d& d, const Eigen::Vector3d& u,
+                                              double sigma) {
+  const double b = d.dot(u);
+  const double c = d.squaredNorm() - sigma * sigma;
+  const double discriminant = b * b - u.squaredNorm() * c;
+  const double t = std::max(0.0, c / (std::sqrt(std::max(discriminant, 0.0)) - b));
+  return (b < 0.0 && discriminant >= 0.0) ? t : std::numeric_limits<double>::infinity();
+}
+
 /// First time in [0, T] at which a centre moving as h(t) = h0 + w t + g t^2 / 2 along a wall's
 /// inward normal reaches distance `radius` from it while approaching (h = signed distance).
 inline std::optional<double> wall_contact_time(double h0, double w, double g, double radius,

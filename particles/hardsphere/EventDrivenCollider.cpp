@@ -133,16 +133,9 @@ void EventDrivenCollider::scan_cell(int i, int cell, const Vec3& x, const Vec3& 
       if (d[axis] > 0.5 * length) d[axis] -= length;
       else if (d[axis] < -0.5 * length) d[axis] += length;
     }
-    const double b = d.dot(u);
-    if (b >= 0.0) continue;  // receding
-    // The contact time c / (-b + sqrt(b^2 - u.u c)) is at least c / (2|b|): skip the square
-    // root when even that bound is later than the best candidate so far.
-    const double sigma = r + fj.radius;
-    const double c = d.squaredNorm() - sigma * sigma;
-    if (c > -2.0 * b * (p.collision_time - now_)) continue;
-    const auto t = ballistic_contact_time(d, u, sigma);
-    if (t && now_ + *t < p.collision_time) {
-      p.collision_time = now_ + *t;
+    const double when = now_ + ballistic_contact_time_or_never(d, u, r + fj.radius);
+    if (when < p.collision_time) {
+      p.collision_time = when;
       p.partner = j;
       p.partner_count = counter_[static_cast<std::size_t>(j)];
     }

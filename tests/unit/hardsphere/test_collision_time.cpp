@@ -72,6 +72,8 @@ TEST(CollisionTime, AlreadyOverlapping) {
   // Approaching while overlapped: contact "now".
   EXPECT_EQ(hs::first_contact_time(Vector3d(0.9, 0, 0), Vector3d(-1, 0, 0), kZero, 1.0, 1.0), 0.0);
   EXPECT_EQ(hs::ballistic_contact_time(Vector3d(0.9, 0, 0), Vector3d(-1, 0, 0), 1.0), 0.0);
+  EXPECT_EQ(hs::ballistic_contact_time_or_never(Vector3d(0.9, 0, 0), Vector3d(-1, 0, 0), 1.0), 0.0);
+  EXPECT_TRUE(std::isinf(hs::ballistic_contact_time_or_never(Vector3d(0.9, 0, 0), Vector3d(1, 0, 0), 1.0)));
   // Separating while overlapped (just after an impulse): no new contact.
   EXPECT_FALSE(hs::first_contact_time(Vector3d(0.9, 0, 0), Vector3d(1, 0, 0), kZero, 1.0, 1.0));
   EXPECT_FALSE(hs::ballistic_contact_time(Vector3d(0.9, 0, 0), Vector3d(1, 0, 0), 1.0));
@@ -144,6 +146,11 @@ TEST(CollisionTime, EqualAccelerationQuarticMatchesClosedForm) {
     if (d.norm() <= sigma) continue;
     const auto exact = hs::ballistic_contact_time(d, u, sigma);
     const auto numeric = hs::first_contact_time(d, u, kZero, sigma, 100.0);
+    const double branch_free = hs::ballistic_contact_time_or_never(d, u, sigma);
+    ASSERT_EQ(exact.has_value(), std::isfinite(branch_free));
+    if (exact) {
+      ASSERT_EQ(*exact, branch_free);
+    }
     ASSERT_EQ(exact.has_value(), numeric.has_value()) << "trial " << trial;
     if (exact) {
       EXPECT_NEAR(*numeric, *exact, 1e-12 * (1 + *exact));
