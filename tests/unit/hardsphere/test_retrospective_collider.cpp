@@ -7,6 +7,7 @@
 
 #include "core/Error.hpp"
 #include "hard_sphere_scenes.hpp"
+#include "particles/hardsphere/EventDrivenCollider.hpp"
 #include "particles/hardsphere/RetrospectiveCollider.hpp"
 
 namespace gp = grainwave::particles;
@@ -83,6 +84,33 @@ TEST(RetrospectiveCollider, BallBouncesOnFloorUnderGravity) {
   EXPECT_EQ(total.wall_hits, 1);
   EXPECT_NEAR(s.position[0].y(), 1.25, 1e-13);
   EXPECT_NEAR(s.velocity[0].y(), 1.0, 1e-13);
+}
+
+// A fixed particle (kFixed: infinite mass) is an obstacle: the moving sphere bounces back with
+// factor e and the obstacle does not move; the event-driven collider agrees.
+TEST(RetrospectiveCollider, FixedParticleIsAnImmovableObstacle) {
+  gp::ParticleStore s;
+  add_sphere(s, Vec3(-2, 0, 0), Vec3(2, 0, 0));
+  s.add(1, Vec3(0, 0, 0), Vec3::Zero(), Vec3::Zero(), 0.5, 1.0, 0.1, gp::kFixed);
+  add_sphere(s, Vec3(0, 3, 0), Vec3::Zero());  // a bystander
+  gp::ParticleStore s2 = s;
+  const hs::CollisionLaw law{0.6, 0.2};
+  hs::RetrospectiveCollider collider(hs::RetrospectiveSettings{law});
+  const gp::Domain d = box(20, gp::FaceKind::kPeriodic);
+  const auto stats = collider.step(s, d, 1.0);
+  // Contact at t = 0.5 (gap 1 at speed 2), then back at 1.2 for 0.5: x = -1 - 0.6.
+  EXPECT_EQ(stats.collisions, 1);
+  EXPECT_NEAR(s.velocity[0].x(), -1.2, 1e-14);
+  EXPECT_NEAR(s.position[0].x(), -1.6, 1e-14);
+  EXPECT_EQ(s.position[1], Vec3::Zero());
+  EXPECT_EQ(s.velocity[1], Vec3::Zero());
+  hs::EventDrivenCollider event_driven(hs::EventDrivenSettings{law});
+  event_driven.initialize(s2, d);
+  event_driven.advance_to(s2, d, 1.0);
+  for (std::size_t i = 0; i < 3; ++i) {
+    EXPECT_NEAR((s2.position[i] - s.position[i]).norm(), 0.0, 1e-14);
+    EXPECT_NEAR((s2.velocity[i] - s.velocity[i]).norm(), 0.0, 1e-14);
+  }
 }
 
 TEST(RetrospectiveCollider, OpenFaceRemovesAndPeriodicFaceWraps) {
