@@ -21,7 +21,7 @@
 #include "particles/Domain.hpp"
 #include "particles/ParticleStore.hpp"
 #include "particles/hardsphere/CollisionImpulse.hpp"
-#include "particles/hardsphere/RetrospectiveCollider.hpp"
+#include "particles/hardsphere/CollisionRecord.hpp"
 
 namespace grainwave::particles::hardsphere {
 

@@ -13,13 +13,17 @@
 // counters. A step in which a particle would leave its search margin s, or collide implausibly
 // often (a collision chain), is restored and subdivided into halves. Wall faces are infinite-mass
 // partners, periodic faces wrap, and particles whose centre leaves through an open face are removed.
+// Hard spheres cannot rest on each other: a contact with zero approach speed under forces that
+// press it shut, or inelastic collapse (endless collisions), ends in grainwave::NumericalFailure.
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "particles/Domain.hpp"
 #include "particles/ParticleStore.hpp"
 #include "particles/hardsphere/CellList.hpp"
 #include "particles/hardsphere/CollisionImpulse.hpp"
+#include "particles/hardsphere/CollisionRecord.hpp"
 
 namespace grainwave::particles::hardsphere {
 
@@ -31,12 +35,6 @@ struct RetrospectiveSettings {
   int max_subdivisions = 30;
   /// Margin factor on the free-flight displacement bound (collisions may speed particles up).
   double margin_factor = 1.5;
-};
-
-struct CollisionRecord {
-  double time;  ///< from the start of the step
-  std::int64_t id_a;
-  std::int64_t id_b;  ///< -1 - face index (2 axis + side) for a wall
 };
 
 struct StepStats {
