@@ -8,6 +8,7 @@
 // pair of particles in adjacent cells is visited exactly once; the caller measures the distance
 // (with Domain::separation for the minimum image). Periodic axes must be at least 2 h_min long so
 // that the minimum image is the only image within reach.
+#include <array>
 #include <cstdint>
 #include <vector>
 
