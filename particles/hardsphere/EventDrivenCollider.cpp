@@ -1,0 +1,432 @@
+#include "particles/hardsphere/EventDrivenCollider.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+#include "core/Error.hpp"
+#include "particles/hardsphere/CollisionTime.hpp"
+
+namespace grainwave::particles::hardsphere {
+
+namespace {
+
+constexpr double kNever = std::numeric_limits<double>::infinity();
+
+/// First t >= 0 at which g(t) = c + b t + a t^2 reaches 0 while decreasing (g >= 0 is "inside").
+/// With g already negative: `outside_is_now` (a particle past a cell face: cross at once), or
+/// else (a particle a round-off into a wall) the first moment it moves further in.
+double first_descent(double c, double b, double a, bool outside_is_now) {
+  if (c < 0.0) {
+    if (outside_is_now || b < 0.0) return 0.0;
+    if (a >= 0.0) return kNever;                          // leaves for good
+    if (b * b - 4.0 * a * c < 0.0) return -b / (2.0 * a);  // turns round before getting out
+    // Otherwise it gets out, and the descending root below is its next contact.
+  }
+  if (a == 0.0) return b < 0.0 ? -c / b : kNever;
+  const double discriminant = b * b - 4.0 * a * c;
+  if (discriminant < 0.0) return kNever;
+  const double q = -0.5 * (b + std::copysign(std::sqrt(discriminant), b));
+  if (q == 0.0) return a < 0.0 ? 0.0 : kNever;  // b = c = 0: leaves at once iff pulled outward
+  double best = kNever;
+  for (double t : {q / a, c / q}) {
+    if (t >= 0.0 && b + 2.0 * a * t < 0.0) best = std::min(best, t);
+  }
+  return best;
+}
+
+}  // namespace
+
+EventDrivenCollider::EventDrivenCollider(EventDrivenSettings settings) : settings_(settings) {
+  validate(settings_.law, "hardsphere");
+}
+
+int EventDrivenCollider::cell_index(const std::array<int, 3>& c) const {
+  return (c[2] * cells_[1] + c[1]) * cells_[0] + c[0];
+}
+
+double EventDrivenCollider::key(int i) const {
+  const Pending& p = pending_[static_cast<std::size_t>(i)];
+  return std::min(p.collision_time, p.crossing_time);
+}
+
+void EventDrivenCollider::heap_update(int i) {
+  auto place = [&](int slot, const HeapEntry& entry) {
+    heap_[static_cast<std::size_t>(slot)] = entry;
+    heap_position_[static_cast<std::size_t>(entry.particle)] = slot;
+  };
+  const HeapEntry entry{key(i), i};
+  int slot = heap_position_[static_cast<std::size_t>(i)];
+  while (slot > 0) {  // sift up
+    const int parent = (slot - 1) / 2;
+    if (!(heap_[static_cast<std::size_t>(parent)].time > entry.time)) break;
+    place(slot, heap_[static_cast<std::size_t>(parent)]);
+    slot = parent;
+  }
+  const int n = static_cast<int>(heap_.size());
+  while (true) {  // sift down
+    int child = 2 * slot + 1;
+    if (child >= n) break;
+    if (child + 1 < n && heap_[static_cast<std::size_t>(child + 1)].time < heap_[static_cast<std::size_t>(child)].time) ++child;
+    if (!(heap_[static_cast<std::size_t>(child)].time < entry.time)) break;
+    place(slot, heap_[static_cast<std::size_t>(child)]);
+    slot = child;
+  }
+  place(slot, entry);
+}
+
+void EventDrivenCollider::sync(ParticleStore& store, int i, double t) {
+  const auto k = static_cast<std::size_t>(i);
+  Flight& f = flight_[k];
+  const double tau = t - f.clock;
+  if (tau == 0.0) return;
+  // Fixed particles exist only with zero acceleration (initialize), so one a serves all.
+  f.position += f.velocity * tau + 0.5 * acceleration_ * tau * tau;
+  f.velocity += acceleration_ * tau;
+  store.angular_velocity[k] += angular_acceleration_[k] * tau;
+  f.clock = t;
+}
+
+double EventDrivenCollider::next_crossing(int i, const Vec3& x, const Vec3& v, int* face) const {
+  const auto k = static_cast<std::size_t>(i);
+  const Vec3& a = acceleration_;
+  double best = kNever;
+  for (int axis = 0; axis < dimension_; ++axis) {
+    const auto ax = static_cast<std::size_t>(axis);
+    const int c = cell_of_[k][ax];
+    // Leaving through a wall face is impossible (the wall collision comes first).
+    if (c > 0 || periodic_[ax]) {
+      const double lower = lo_[axis] + c * cell_size_[ax];
+      const double t = first_descent(x[axis] - lower, v[axis], 0.5 * a[axis], true);
+      if (t < best) { best = t; *face = 2 * axis; }
+    }
+    if (c < cells_[ax] - 1 || periodic_[ax]) {
+      const double upper = lo_[axis] + (c + 1) * cell_size_[ax];
+      const double t = first_descent(upper - x[axis], -v[axis], -0.5 * a[axis], true);
+      if (t < best) { best = t; *face = 2 * axis + 1; }
+    }
+  }
+  return best;
+}
+
+template <bool kAccelerated>
+void EventDrivenCollider::scan_cell(int i, int cell, const Vec3& x, const Vec3& v, Pending& p) {
+  const Vec3& a = acceleration_;
+  const double r = flight_[static_cast<std::size_t>(i)].radius;
+  for (int j = head_[static_cast<std::size_t>(cell)]; j >= 0; j = next_[static_cast<std::size_t>(j)]) {
+    if (j == i) continue;
+    ++pair_checks_;
+    const Flight& fj = flight_[static_cast<std::size_t>(j)];
+    const double tau = now_ - fj.clock;
+    // Uniform acceleration cancels in the relative motion: only velocities differ.
+    Vec3 d = fj.position + fj.velocity * tau - x;
+    Vec3 u = fj.velocity - v;
+    if constexpr (kAccelerated) {
+      d += 0.5 * a * tau * tau;
+      u += a * tau;
+    }
+    for (int axis = 0; axis < dimension_; ++axis) {  // minimum image (Domain::separation)
+      if (!periodic_[static_cast<std::size_t>(axis)]) continue;
+      const double length = length_[axis];
+      if (d[axis] > 0.5 * length) d[axis] -= length;
+      else if (d[axis] < -0.5 * length) d[axis] += length;
+    }
+    const double when = now_ + ballistic_contact_time_or_never(d, u, r + fj.radius);
+    if (when < p.collision_time) {
+      p.collision_time = when;
+      p.partner = j;
+      p.partner_count = counter_[static_cast<std::size_t>(j)];
+    }
+  }
+}
+
+void EventDrivenCollider::scan(int i, int cell, const Vec3& x, const Vec3& v, Pending& p) {
+  if (accelerated_) scan_cell<true>(i, cell, x, v, p);
+  else scan_cell<false>(i, cell, x, v, p);
+}
+
+void EventDrivenCollider::predict(const ParticleStore& store, int i, int layer) {
+  const auto k = static_cast<std::size_t>(i);
+  Pending& p = pending_[k];
+  const Flight& fi = flight_[k];
+  const double tau = now_ - fi.clock;
+  const Vec3& a = acceleration_;
+  const Vec3 x = fi.position + fi.velocity * tau + 0.5 * a * tau * tau;
+  const Vec3 v = fi.velocity + a * tau;
+  const auto& c = cell_of_[k];
+  const bool fixed = store.is_fixed(k);
+  if (layer < 0) {
+    ++predictions_;
+    p.collision_time = kNever;
+    p.partner = kNoPartner;
+  }
+  if (!fixed) {
+    for (int axis = 0; axis < dimension_; ++axis) {
+      const auto ax = static_cast<std::size_t>(axis);
+      for (int side = 0; side < 2; ++side) {
+        if (!wall_[ax][static_cast<std::size_t>(side)]) continue;
+        if (c[ax] != (side == 0 ? 0 : cells_[ax] - 1)) continue;  // only from boundary cells
+        const double sign = side == 0 ? 1.0 : -1.0;
+        const double plane = side == 0 ? lo_[axis] : lo_[axis] + length_[axis];
+        // The gap to the wall is a quadratic in t: its first decreasing zero, in closed form.
+        const double t = first_descent(sign * (x[axis] - plane) - fi.radius, sign * v[axis],
+                                       0.5 * sign * a[axis], false);
+        if (now_ + t < p.collision_time) {
+          p.collision_time = now_ + t;
+          p.partner = -1 - (2 * axis + side);
+        }
+      }
+    }
+  }
+  const auto cell = static_cast<std::size_t>(cell_index(c));
+  if (layer < 0) {
+    for (int s = stencil_start_[cell]; s < stencil_start_[cell + 1]; ++s) {
+      scan(i, stencil_[static_cast<std::size_t>(s)], x, v, p);
+    }
+  } else {
+    // Only the layer ahead of the crossed face is new; the rest was scanned before.
+    const int along = layer / 2;
+    const int ahead = layer % 2 == 0 ? -1 : 1;
+    const int reach_z = dimension_ == 3 ? 1 : 0;
+    for (int dz = -reach_z; dz <= reach_z; ++dz) {
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dx = -1; dx <= 1; ++dx) {
+          std::array<int, 3> offset{dx, dy, dz};
+          if (offset[static_cast<std::size_t>(along)] != ahead) continue;
+          std::array<int, 3> nb{c[0] + dx, c[1] + dy, c[2] + dz};
+          bool inside = true;
+          for (std::size_t ax = 0; ax < 3; ++ax) {
+            if (nb[ax] >= 0 && nb[ax] < cells_[ax]) continue;
+            if (periodic_[ax]) nb[ax] = (nb[ax] + cells_[ax]) % cells_[ax];
+            else inside = false;
+          }
+          if (inside) scan(i, cell_index(nb), x, v, p);
+        }
+      }
+    }
+  }
+  if (fixed && p.partner >= 0 && store.is_fixed(static_cast<std::size_t>(p.partner))) {
+    p.collision_time = kNever;  // two immovable particles never collide (fixed ones are at rest)
+    p.partner = kNoPartner;
+  }
+  int face = 0;
+  p.crossing_time = now_ + next_crossing(i, x, v, &face);
+  p.crossing_face = face;
+  heap_update(i);
+}
+
+void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain, double start_time) {
+  const std::size_t n = store.size();
+  now_ = start_time;
+  dimension_ = domain.dimension;
+  lo_ = domain.lo;
+  length_ = domain.length();
+  double max_radius = 0.0;
+  bool any_fixed = false, first = true;
+  for (std::size_t i = 0; i < n; ++i) {
+    max_radius = std::max(max_radius, store.radius[i]);
+    if (store.is_fixed(i)) { any_fixed = true; continue; }
+    const Vec3 a = store.force[i] / store.mass[i];
+    if (first) { acceleration_ = a; first = false; }
+    if ((a - acceleration_).norm() > 1e-14 * (1.0 + acceleration_.norm())) {
+      throw std::invalid_argument("EventDrivenCollider: particles must share one acceleration");
+    }
+  }
+  if (first) acceleration_.setZero();
+  accelerated_ = !acceleration_.isZero(0.0);
+  if (any_fixed && !acceleration_.isZero(0.0)) {
+    throw std::invalid_argument("EventDrivenCollider: fixed particles need zero acceleration");
+  }
+  for (int k = 0; k < 3; ++k) {
+    const auto ax = static_cast<std::size_t>(k);
+    wall_[ax] = {false, false};
+    if (k >= dimension_) {
+      cells_[ax] = 1;
+      cell_size_[ax] = 1.0;
+      periodic_[ax] = false;
+      continue;
+    }
+    for (std::size_t side = 0; side < 2; ++side) {
+      if (domain.face[ax][side] == FaceKind::kOpen) {
+        throw std::invalid_argument("EventDrivenCollider: open faces are not supported");
+      }
+      wall_[ax][side] = domain.face[ax][side] == FaceKind::kWall;
+    }
+    periodic_[ax] = domain.periodic(k);
+    cells_[ax] = std::max(1, static_cast<int>(std::floor(length_[k] / (2.0 * max_radius))));
+    if (periodic_[ax] && cells_[ax] < 3) {
+      throw std::invalid_argument("EventDrivenCollider: periodic axis " + std::to_string(k) +
+                                  " must span at least three diameters");
+    }
+    cell_size_[ax] = length_[k] / cells_[ax];
+  }
+  const auto n_cells = static_cast<std::size_t>(cells_[0] * cells_[1] * cells_[2]);
+  // Adjacent cells of every cell (itself included), wrapped across periodic faces.
+  stencil_start_.assign(n_cells + 1, 0);
+  stencil_.clear();
+  const int reach_z = dimension_ == 3 ? 1 : 0;
+  for (int cz = 0; cz < cells_[2]; ++cz)
+    for (int cy = 0; cy < cells_[1]; ++cy)
+      for (int cx = 0; cx < cells_[0]; ++cx) {
+        for (int dz = -reach_z; dz <= reach_z; ++dz)
+          for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx) {
+              std::array<int, 3> nb{cx + dx, cy + dy, cz + dz};
+              bool inside = true;
+              for (std::size_t ax = 0; ax < 3; ++ax) {
+                if (nb[ax] >= 0 && nb[ax] < cells_[ax]) continue;
+                if (periodic_[ax]) nb[ax] = (nb[ax] + cells_[ax]) % cells_[ax];
+                else inside = false;
+              }
+              if (inside) stencil_.push_back(cell_index(nb));
+            }
+        stencil_start_[static_cast<std::size_t>(cell_index({cx, cy, cz})) + 1] =
+            static_cast<int>(stencil_.size());
+      }
+  head_.assign(n_cells, -1);
+  next_.assign(n, -1);
+  prev_.assign(n, -1);
+  cell_of_.resize(n);
+  flight_.resize(n);
+  counter_.assign(n, 0u);
+  burst_start_.assign(n, -kNever);
+  burst_count_.assign(n, 0u);
+  pending_.assign(n, Pending{kNever, kNever, kNoPartner, 0u, 0});
+  angular_acceleration_.resize(n);
+  heap_.resize(n);
+  heap_position_.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    heap_[i] = HeapEntry{kNever, static_cast<int>(i)};
+    heap_position_[i] = static_cast<int>(i);
+    angular_acceleration_[i] = store.torque[i] * store.inverse_inertia(i);
+    domain.wrap(store.position[i]);
+    flight_[i] = Flight{store.position[i], now_, store.velocity[i], store.radius[i]};
+    for (std::size_t ax = 0; ax < 3; ++ax) {
+      const auto k = static_cast<int>(ax);
+      const double s = (flight_[i].position[k] - lo_[k]) / cell_size_[ax];
+      cell_of_[i][ax] = k >= dimension_ ? 0 : std::clamp(static_cast<int>(std::floor(s)), 0, cells_[ax] - 1);
+    }
+    const auto cell = static_cast<std::size_t>(cell_index(cell_of_[i]));
+    next_[i] = head_[cell];
+    if (head_[cell] >= 0) prev_[static_cast<std::size_t>(head_[cell])] = static_cast<int>(i);
+    head_[cell] = static_cast<int>(i);
+  }
+  for (std::size_t i = 0; i < n; ++i) predict(store, static_cast<int>(i), -1);
+}
+
+EventStats EventDrivenCollider::advance_to(ParticleStore& store, const Domain& domain, double target) {
+  EventStats stats;
+  predictions_ = pair_checks_ = 0;
+  const std::size_t n = store.size();
+  if (n != flight_.size()) throw std::logic_error("EventDrivenCollider: store changed size");
+  while (!heap_.empty() && heap_[0].time <= target) {
+    const int i = heap_[0].particle;
+    const auto a = static_cast<std::size_t>(i);
+    Pending& p = pending_[a];
+    now_ = key(i);
+    if (p.crossing_time <= p.collision_time) {
+      const int face = p.crossing_face;
+      const int axis = face / 2;
+      const auto ax = static_cast<std::size_t>(axis);
+      const int step = face % 2 == 0 ? -1 : 1;
+      sync(store, i, now_);
+      const auto old_cell = static_cast<std::size_t>(cell_index(cell_of_[a]));
+      if (prev_[a] >= 0) next_[static_cast<std::size_t>(prev_[a])] = next_[a];
+      else head_[old_cell] = next_[a];
+      if (next_[a] >= 0) prev_[static_cast<std::size_t>(next_[a])] = prev_[a];
+      int c = cell_of_[a][ax] + step;
+      if (c < 0) c += cells_[ax];
+      if (c >= cells_[ax]) c -= cells_[ax];
+      cell_of_[a][ax] = c;
+      // Snap onto the shared face (wrapped) so the new cell's exit test starts exactly at 0.
+      flight_[a].position[axis] = lo_[axis] + (step > 0 ? c : c + 1) * cell_size_[ax];
+      const auto new_cell = static_cast<std::size_t>(cell_index(cell_of_[a]));
+      prev_[a] = -1;
+      next_[a] = head_[new_cell];
+      if (head_[new_cell] >= 0) prev_[static_cast<std::size_t>(head_[new_cell])] = i;
+      head_[new_cell] = i;
+      ++stats.cell_crossings;
+      const bool stale = p.partner >= 0 && counter_[static_cast<std::size_t>(p.partner)] != p.partner_count;
+      stats.stale_events += stale ? 1 : 0;
+      predict(store, i, stale ? -1 : face);
+      continue;
+    }
+    const int partner = p.partner;
+    const bool pair = partner >= 0;
+    const auto b = static_cast<std::size_t>(pair ? partner : 0);
+    if (pair && counter_[b] != p.partner_count) {
+      ++stats.stale_events;
+      predict(store, i, -1);
+      continue;
+    }
+    sync(store, i, now_);
+    Body body_a;
+    body_a.velocity = flight_[a].velocity;
+    body_a.angular_velocity = store.angular_velocity[a];
+    body_a.inverse_mass = store.inverse_mass(a);
+    body_a.inverse_inertia = store.inverse_inertia(a);
+    body_a.radius = flight_[a].radius;
+    Body body_b;
+    Vec3 normal = Vec3::Zero();
+    if (pair) {
+      sync(store, partner, now_);
+      body_b.velocity = flight_[b].velocity;
+      body_b.angular_velocity = store.angular_velocity[b];
+      body_b.inverse_mass = store.inverse_mass(b);
+      body_b.inverse_inertia = store.inverse_inertia(b);
+      body_b.radius = flight_[b].radius;
+      normal = domain.separation(flight_[a].position, flight_[b].position).normalized();
+    } else {
+      const int face = -1 - partner;
+      normal[face / 2] = face % 2 == 0 ? -1.0 : 1.0;
+    }
+    // Inelastic collapse (infinitely many collisions before a finite time, e.g. a ball with
+    // e < 1 settling on a floor) shows as bursts of collisions a few ulps apart: report it.
+    const double burst_span = 1e4 * std::numeric_limits<double>::epsilon() * std::max(1.0, std::abs(now_));
+    for (int member = 0; member < (pair ? 2 : 1); ++member) {
+      const std::size_t m = member == 0 ? a : b;
+      if (now_ - burst_start_[m] <= burst_span) {
+        if (++burst_count_[m] > kBurstLimit) {
+          throw NumericalFailure("hard-sphere collisions piled up at one instant (inelastic "
+                                 "collapse or a resting contact)", "EventDrivenCollider", now_, -1);
+        }
+      } else {
+        burst_start_[m] = now_;
+        burst_count_[m] = 0;
+      }
+    }
+    const CollisionImpulse impulse = collide(body_a, body_b, normal, settings_.law);
+    if (!impulse.approaching && !pair && normal.dot(acceleration_) > 0.0) {
+      // Touching a wall without approaching it while pushed into it: a resting contact.
+      throw NumericalFailure("hard sphere at rest on a wall under a force pressing it in (resting "
+                             "contacts need a soft-sphere model)", "EventDrivenCollider", now_, -1);
+    }
+    ++counter_[a];  // even a grazing no-op: the rescan below must not return the same contact
+    flight_[a].velocity = body_a.velocity;
+    store.angular_velocity[a] = body_a.angular_velocity;
+    if (pair) {
+      ++counter_[b];
+      flight_[b].velocity = body_b.velocity;
+      store.angular_velocity[b] = body_b.angular_velocity;
+    }
+    if (impulse.approaching) {
+      ++(pair ? stats.collisions : stats.wall_hits);
+      if (log_) log_->push_back(CollisionRecord{now_, store.id[a], pair ? store.id[b] : partner});
+    }
+    predict(store, i, -1);
+    if (pair) predict(store, partner, -1);
+  }
+  stats.predictions = predictions_;
+  stats.pair_checks = pair_checks_;
+  now_ = target;
+  for (std::size_t i = 0; i < n; ++i) {
+    sync(store, static_cast<int>(i), target);
+    store.position[i] = flight_[i].position;
+    store.velocity[i] = flight_[i].velocity;
+  }
+  return stats;
+}
+
+}  // namespace grainwave::particles::hardsphere

@@ -1,0 +1,126 @@
+#pragma once
+// Event-driven hard spheres for equal accelerations (none, or gravity alone): 002 §2.3.3 notes
+// that then Eq. 2.26 reduces to a quadratic and the system can be advanced collision by
+// collision (Alder & Wainwright; Rapaport, "The Art of Molecular Dynamics Simulation", ch. 14;
+// Lubachevsky 1991 for lazy per-particle clocks and one pending event per particle).
+//
+// Relative motion of any two particles is uniform, so a pair's contact time is the closed-form
+// smaller root of |d + u t| = sigma (CollisionTime.hpp). Each particle keeps its own clock: its
+// state is stored at the time of its last event and extrapolated with Eqs 2.11–2.13 on demand.
+// Cells are at least one largest diameter wide. Each particle holds only its earliest predicted
+// collision (partner or wall, with the partner's collision counter at prediction time) and its
+// next cell crossing; an indexed binary heap over particles orders them. Why this is complete:
+// every pair that will touch is adjacent from the later of the partners' last events on, and each
+// of those events scans the cells that became adjacent (all 27 after a collision, the new layer
+// of 9 after a crossing); a candidate whose partner has collided since is stale and triggers a
+// full rescan of that particle when its time comes. Impulses: CollisionImpulse.hpp.
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "particles/Domain.hpp"
+#include "particles/ParticleStore.hpp"
+#include "particles/hardsphere/CollisionImpulse.hpp"
+#include "particles/hardsphere/CollisionRecord.hpp"
+
+namespace grainwave::particles::hardsphere {
+
+struct EventDrivenSettings {
+  CollisionLaw law{};
+};
+
+struct EventStats {
+  long collisions = 0;
+  long wall_hits = 0;
+  long cell_crossings = 0;
+  long stale_events = 0;  ///< candidates invalidated by the partner's other collision
+  long predictions = 0;   ///< full 27-cell rescans
+  long pair_checks = 0;   ///< partner candidates examined
+};
+
+class EventDrivenCollider {
+ public:
+  explicit EventDrivenCollider(EventDrivenSettings settings = {});
+
+  /// Takes over the store at time `start_time`: checks that every particle has the same
+  /// acceleration F/m (throws std::invalid_argument otherwise, or for open faces), bins the
+  /// particles and predicts their first events.
+  void initialize(ParticleStore& store, const Domain& domain, double start_time = 0.0);
+
+  /// Processes every event up to `target` and leaves all particles synchronised at `target`
+  /// (positions wrapped into the box) and written back to the store. Throws
+  /// grainwave::NumericalFailure when a particle collides hundreds of times within a few ulps of
+  /// time (inelastic collapse, resting contacts: hard spheres cannot represent them). The store must be the one
+  /// passed to initialize(); after changing it from outside (particles, velocities, forces),
+  /// call initialize() again.
+  EventStats advance_to(ParticleStore& store, const Domain& domain, double target);
+
+  double time() const { return now_; }
+  /// When set, every impulse is appended with its absolute time. Pass nullptr to stop.
+  void record_collisions(std::vector<CollisionRecord>* log) { log_ = log; }
+
+ private:
+  static constexpr int kNoPartner = -1000;  ///< partners >= 0 are particles, -1 - face are walls
+  static constexpr std::uint32_t kBurstLimit = 256;  ///< collisions of one particle a few ulps apart
+
+  /// Compact per-particle flight state (one cache line): what the pair scan reads.
+  struct Flight {
+    Vec3 position;
+    double clock;  ///< time at which position and velocity are valid
+    Vec3 velocity;
+    double radius;
+  };
+  /// The particle's pending events: earliest predicted collision and next cell crossing.
+  struct Pending {
+    double collision_time;
+    double crossing_time;
+    int partner;
+    std::uint32_t partner_count;
+    int crossing_face;  ///< 2 axis + (0 low, 1 high)
+  };
+
+  void sync(ParticleStore& store, int i, double t);
+  /// Rescans all adjacent cells and walls (layer < 0), or after a crossing only the cells that
+  /// became adjacent (layer = crossed face), keeping the earlier of old and new candidates.
+  void predict(const ParticleStore& store, int i, int layer);
+  /// Updates p with the earliest contact of i with the particles of `cell`.
+  void scan(int i, int cell, const Vec3& x, const Vec3& v, Pending& p);
+  template <bool kAccelerated>
+  void scan_cell(int i, int cell, const Vec3& x, const Vec3& v, Pending& p);
+  int cell_index(const std::array<int, 3>& c) const;
+  /// Time from now until particle i leaves its cell, and across which face; +inf if never.
+  double next_crossing(int i, const Vec3& x, const Vec3& v, int* face) const;
+  double key(int i) const;
+  void heap_update(int i);
+
+  EventDrivenSettings settings_;
+  std::vector<CollisionRecord>* log_ = nullptr;
+  Vec3 acceleration_ = Vec3::Zero();
+  bool accelerated_ = false;
+  double now_ = 0.0;
+  int dimension_ = 3;
+  Vec3 lo_ = Vec3::Zero();
+  Vec3 length_ = Vec3::Ones();
+  std::array<double, 3> cell_size_{1, 1, 1};
+  std::array<int, 3> cells_{1, 1, 1};
+  std::array<bool, 3> periodic_{true, true, true};
+  std::array<std::array<bool, 2>, 3> wall_{};
+  std::vector<Flight> flight_;               ///< authoritative x, v while events are pending
+  std::vector<Pending> pending_;
+  std::vector<std::uint32_t> counter_;       ///< collisions so far (stale-candidate test)
+  std::vector<double> burst_start_;          ///< collapse detection: start of the current burst
+  std::vector<std::uint32_t> burst_count_;
+  std::vector<std::array<int, 3>> cell_of_;  ///< current cell of each particle
+  std::vector<int> head_, next_, prev_;      ///< doubly linked particles per cell
+  std::vector<int> stencil_start_, stencil_; ///< adjacent cells of each cell (CSR)
+  std::vector<Vec3> angular_acceleration_;
+  struct HeapEntry {
+    double time;  ///< key() of the particle, cached for the sift loops
+    int particle;
+  };
+  std::vector<HeapEntry> heap_;              ///< indexed binary min-heap of particles by key()
+  std::vector<int> heap_position_;
+  long predictions_ = 0, pair_checks_ = 0;
+};
+
+}  // namespace grainwave::particles::hardsphere

@@ -1,0 +1,268 @@
+// EventDrivenCollider: exact small cases, agreement with the retrospective collider, and the
+// Enskog collision frequency of the hard-sphere fluid.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <algorithm>
+#include <cstdio>
+
+#include "core/Error.hpp"
+#include "hard_sphere_scenes.hpp"
+#include "particles/hardsphere/EventDrivenCollider.hpp"
+#include "particles/hardsphere/RetrospectiveCollider.hpp"
+
+namespace gp = grainwave::particles;
+namespace hs = grainwave::particles::hardsphere;
+using gp::Vec3;
+
+namespace {
+
+gp::Domain cube(double length, gp::FaceKind kind) {
+  gp::Domain d;
+  d.lo = Vec3::Constant(-length / 2);
+  d.hi = Vec3::Constant(length / 2);
+  for (auto& f : d.face) f = {kind, kind};
+  return d;
+}
+
+void add_sphere(gp::ParticleStore& s, const Vec3& x, const Vec3& v, double r = 0.5, double m = 1.0) {
+  s.add(static_cast<std::int64_t>(s.size()), x, v, Vec3::Zero(), r, m, gp::solid_inertia(3, m, r));
+}
+
+TEST(EventDrivenCollider, HeadOnPairAcrossPeriodicFace) {
+  // The pair meets across the periodic x face: gap 20 - 17 - 1 = 2 closes at speed 2 at t = 1.
+  gp::ParticleStore s;
+  add_sphere(s, Vec3(8.5, 0, 0), Vec3(1, 0, 0));
+  add_sphere(s, Vec3(-8.5, 0, 0), Vec3(-1, 0, 0));
+  hs::EventDrivenCollider collider(hs::EventDrivenSettings{hs::CollisionLaw{1.0, 0.0}});
+  std::vector<hs::CollisionRecord> log;
+  collider.record_collisions(&log);
+  const gp::Domain d = cube(20, gp::FaceKind::kPeriodic);
+  collider.initialize(s, d);
+  const auto stats = collider.advance_to(s, d, 3.0);
+  EXPECT_EQ(stats.collisions, 1);
+  ASSERT_EQ(log.size(), 1u);
+  EXPECT_NEAR(log[0].time, 1.0, 1e-14);
+  EXPECT_NEAR(s.position[0].x(), 8.5 - 1.0, 1e-13);  // back 1 + then 2 the other way
+  EXPECT_NEAR(s.velocity[0].x(), -1.0, 1e-14);
+  EXPECT_GT(stats.cell_crossings, 0);
+}
+
+TEST(EventDrivenCollider, BallBouncesOnFloorUnderGravity) {
+  gp::ParticleStore s;
+  add_sphere(s, Vec3(0, 1.5, 0), Vec3::Zero());
+  s.force[0] = Vec3(0, -2.0, 0);
+  gp::Domain d = cube(10, gp::FaceKind::kPeriodic);
+  d.lo.y() = 0.0;
+  d.face[1] = {gp::FaceKind::kWall, gp::FaceKind::kWall};
+  hs::EventDrivenCollider collider(hs::EventDrivenSettings{hs::CollisionLaw{1.0, 0.0}});
+  collider.initialize(s, d);
+  const auto stats = collider.advance_to(s, d, 1.5);
+  EXPECT_EQ(stats.wall_hits, 1);
+  EXPECT_NEAR(s.position[0].y(), 1.25, 1e-13);
+  EXPECT_NEAR(s.velocity[0].y(), 1.0, 1e-13);
+}
+
+// An elastic ball bouncing on a floor for many periods: the bounce height (energy) is kept, it
+// never sinks into the floor, and both colliders agree on the bounce times (period 2).
+TEST(EventDrivenCollider, ElasticBallKeepsBouncingForManyPeriods) {
+  gp::ParticleStore s;
+  add_sphere(s, Vec3(0, 1.5, 0), Vec3(0.3, 0, 0));
+  s.force[0] = Vec3(0, -2.0, 0);
+  gp::Domain d = cube(10, gp::FaceKind::kPeriodic);
+  d.lo.y() = 0.0;
+  d.face[1] = {gp::FaceKind::kWall, gp::FaceKind::kWall};
+  gp::ParticleStore s2 = s;
+  hs::EventDrivenCollider collider(hs::EventDrivenSettings{hs::CollisionLaw{1.0, 0.0}});
+  collider.initialize(s, d);
+  hs::RetrospectiveCollider retrospective(hs::RetrospectiveSettings{hs::CollisionLaw{1.0, 0.0}});
+  long hits = 0, hits2 = 0;
+  for (int k = 1; k <= 400; ++k) {
+    hits += collider.advance_to(s, d, 0.25 * k).wall_hits;
+    hits2 += retrospective.step(s2, d, 0.25).wall_hits;
+    for (const gp::ParticleStore* p : {&s, &s2}) {
+      const double y = p->position[0].y(), vy = p->velocity[0].y();
+      ASSERT_GE(y, 0.5 - 1e-12) << "step " << k;
+      ASSERT_NEAR(0.5 * vy * vy + 2.0 * y, 3.0, 1e-11) << "step " << k;  // v^2/2 + g y
+    }
+  }
+  EXPECT_EQ(hits, 50);  // first bounce at t = 1, then every 2 up to t = 100
+  EXPECT_EQ(hits2, 50);
+}
+
+// A ball with e < 1 on a floor bounces infinitely often before t* = finite (inelastic collapse).
+// Both colliders must report it instead of hanging.
+TEST(EventDrivenCollider, InelasticCollapseOnFloorIsReportedNotHung) {
+  gp::ParticleStore s;
+  add_sphere(s, Vec3(0, 1.5, 0), Vec3::Zero());
+  s.force[0] = Vec3(0, -2.0, 0);
+  gp::Domain d = cube(10, gp::FaceKind::kPeriodic);
+  d.lo.y() = 0.0;
+  d.face[1] = {gp::FaceKind::kWall, gp::FaceKind::kWall};
+  gp::ParticleStore s2 = s;
+  hs::EventDrivenCollider collider(hs::EventDrivenSettings{hs::CollisionLaw{0.5, 0.0}});
+  collider.initialize(s, d);
+  // Bounce k ends at t_k = 1 + 2 (e + ... + e^k): collapse at t* = 1 + 2 e / (1 - e) = 3.
+  EXPECT_NO_THROW(collider.advance_to(s, d, 2.9));
+  EXPECT_THROW(collider.advance_to(s, d, 4.0), grainwave::NumericalFailure);
+  hs::RetrospectiveCollider retrospective(hs::RetrospectiveSettings{hs::CollisionLaw{0.5, 0.0}});
+  EXPECT_THROW(retrospective.step(s2, d, 4.0), grainwave::NumericalFailure);
+}
+
+TEST(EventDrivenCollider, RejectsUnequalAccelerations) {
+  gp::ParticleStore s;
+  add_sphere(s, Vec3(0, 0, 0), Vec3::Zero());
+  add_sphere(s, Vec3(2, 0, 0), Vec3::Zero());
+  s.force[1] = Vec3(1, 0, 0);
+  hs::EventDrivenCollider collider;
+  EXPECT_THROW(collider.initialize(s, cube(10, gp::FaceKind::kPeriodic)), std::invalid_argument);
+}
+
+struct Comparison {
+  std::size_t collisions = 0;
+  double worst_time = 0, worst_state = 0;
+  bool same_sequence = true;
+};
+
+Comparison compare_with_retrospective(hs::CollisionLaw law, bool gravity_and_walls) {
+  gp::ParticleStore a;
+  gp::Domain d;
+  gp::testing::fcc_gas(a, d, 3, 0.3, 1.0, 99);  // N = 108
+  if (gravity_and_walls) {
+    d.face[1] = {gp::FaceKind::kWall, gp::FaceKind::kWall};
+    d.lo.y() -= 0.2;  // keep the outer lattice layer off the walls
+    d.hi.y() += 0.2;
+    for (std::size_t i = 0; i < a.size(); ++i) a.force[i] = a.mass[i] * Vec3(0, -3.0, 0);
+  }
+  gp::ParticleStore b = a;
+  std::vector<hs::CollisionRecord> log_a, log_b;
+  hs::RetrospectiveCollider retrospective(hs::RetrospectiveSettings{law});
+  retrospective.record_collisions(&log_a);
+  const double dt = 0.01;
+  const int steps = 100;
+  std::vector<hs::CollisionRecord> step_log;
+  for (int k = 0; k < steps; ++k) {
+    const std::size_t before = log_a.size();
+    retrospective.step(a, d, dt);
+    for (std::size_t m = before; m < log_a.size(); ++m) log_a[m].time += k * dt;  // absolute
+  }
+  hs::EventDrivenCollider event_driven(hs::EventDrivenSettings{law});
+  event_driven.record_collisions(&log_b);
+  event_driven.initialize(b, d);
+  event_driven.advance_to(b, d, steps * dt);
+
+  Comparison c;
+  c.collisions = log_a.size();
+  c.same_sequence = log_a.size() == log_b.size();
+  for (std::size_t m = 0; c.same_sequence && m < log_a.size(); ++m) {
+    const auto key = [](const hs::CollisionRecord& r) {
+      return std::make_pair(std::min(r.id_a, r.id_b), std::max(r.id_a, r.id_b));
+    };
+    c.same_sequence = key(log_a[m]) == key(log_b[m]);
+    c.worst_time = std::max(c.worst_time, std::abs(log_a[m].time - log_b[m].time));
+  }
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    c.worst_state = std::max(c.worst_state, d.separation(a.position[i], b.position[i]).norm());
+    c.worst_state = std::max(c.worst_state, (a.velocity[i] - b.velocity[i]).norm());
+    c.worst_state = std::max(c.worst_state, (a.angular_velocity[i] - b.angular_velocity[i]).norm());
+  }
+  return c;
+}
+
+TEST(EventDrivenCollider, AgreesWithRetrospectiveElasticGas) {
+  const Comparison c = compare_with_retrospective(hs::CollisionLaw{1.0, 0.0}, false);
+  std::printf("elastic gas: %zu collisions, same order %d, worst time diff %.2e, state diff %.2e\n",
+              c.collisions, c.same_sequence, c.worst_time, c.worst_state);
+  EXPECT_GT(c.collisions, 300u);
+  EXPECT_TRUE(c.same_sequence);
+  EXPECT_LT(c.worst_time, 1e-10);
+  EXPECT_LT(c.worst_state, 1e-9);
+}
+
+TEST(EventDrivenCollider, AgreesWithRetrospectiveFrictionalGasUnderGravityWithWalls) {
+  const Comparison c = compare_with_retrospective(hs::CollisionLaw{0.9, 0.2}, true);
+  std::printf("frictional gas, gravity, walls: %zu events, same order %d, worst time diff %.2e, "
+              "state diff %.2e\n", c.collisions, c.same_sequence, c.worst_time, c.worst_state);
+  EXPECT_GT(c.collisions, 300u);
+  EXPECT_TRUE(c.same_sequence);
+  EXPECT_LT(c.worst_time, 1e-10);
+  EXPECT_LT(c.worst_state, 1e-9);
+}
+
+// 2D disks (I = m r^2 / 2) under gravity between walls, periodic in x, with friction: the two
+// colliders must give the same collision sequence, and neither may leave an overlap.
+TEST(EventDrivenCollider, AgreesWithRetrospectiveForDisksUnderGravity) {
+  gp::ParticleStore a;
+  gp::Domain d;
+  gp::testing::disk_gas(a, d, 12, 0.4, 1.0, 8);  // 144 disks
+  d.face[1] = {gp::FaceKind::kWall, gp::FaceKind::kWall};
+  for (std::size_t i = 0; i < a.size(); ++i) a.force[i] = a.mass[i] * Vec3(0, -2.0, 0);
+  gp::ParticleStore b = a;
+  const hs::CollisionLaw law{0.9, 0.3};
+  std::vector<hs::CollisionRecord> log_a, log_b;
+  hs::RetrospectiveCollider retrospective(hs::RetrospectiveSettings{law});
+  retrospective.record_collisions(&log_a);
+  hs::CellList scratch;
+  double worst_overlap = 0.0;
+  const double dt = 0.01;
+  for (int k = 0; k < 100; ++k) {
+    const std::size_t before = log_a.size();
+    retrospective.step(a, d, dt);
+    for (std::size_t m = before; m < log_a.size(); ++m) log_a[m].time += k * dt;
+    worst_overlap = std::max(worst_overlap, hs::max_relative_overlap(a, d, scratch));
+  }
+  hs::EventDrivenCollider event_driven(hs::EventDrivenSettings{law});
+  event_driven.record_collisions(&log_b);
+  event_driven.initialize(b, d);
+  event_driven.advance_to(b, d, 100 * dt);
+  EXPECT_LT(worst_overlap, 1e-10);
+  EXPECT_LT(hs::max_relative_overlap(b, d, scratch), 1e-10);
+  ASSERT_EQ(log_a.size(), log_b.size());
+  EXPECT_GT(log_a.size(), 200u);
+  double worst_time = 0.0, worst_state = 0.0;
+  for (std::size_t m = 0; m < log_a.size(); ++m) {
+    ASSERT_EQ(std::minmax(log_a[m].id_a, log_a[m].id_b), std::minmax(log_b[m].id_a, log_b[m].id_b)) << m;
+    worst_time = std::max(worst_time, std::abs(log_a[m].time - log_b[m].time));
+  }
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    worst_state = std::max(worst_state, d.separation(a.position[i], b.position[i]).norm());
+    worst_state = std::max(worst_state, (a.velocity[i] - b.velocity[i]).norm());
+    worst_state = std::max(worst_state, std::abs(a.angular_velocity[i].z() - b.angular_velocity[i].z()));
+    ASSERT_EQ(b.position[i].z(), 0.0);
+    ASSERT_EQ(b.velocity[i].z(), 0.0);
+  }
+  std::printf("2D disks, gravity, walls: %zu events, worst time diff %.2e, state diff %.2e\n",
+              log_a.size(), worst_time, worst_state);
+  EXPECT_LT(worst_time, 1e-10);
+  EXPECT_LT(worst_state, 1e-9);
+}
+
+// Enskog: Gamma = 4 n sigma^2 sqrt(pi kT / m) g(sigma), g = (1 - eta/2) / (1 - eta)^3
+// (Carnahan–Starling contact value; reference README). eta = 0.2618 gives n = 0.5.
+TEST(EventDrivenCollider, CollisionFrequencyMatchesEnskog) {
+  gp::ParticleStore s;
+  gp::Domain d;
+  const double eta = 0.2618;
+  gp::testing::fcc_gas(s, d, 7, eta, 1.0, 5);  // N = 1372
+  const double n_density = static_cast<double>(s.size()) / d.length().prod();
+  hs::EventDrivenCollider collider(hs::EventDrivenSettings{hs::CollisionLaw{1.0, 0.0}});
+  collider.initialize(s, d);
+  collider.advance_to(s, d, 10.0);  // melt the lattice (~75 collisions per particle)
+  const double t_measure = 40.0;
+  const auto stats = collider.advance_to(s, d, 10.0 + t_measure);
+  double twice_kinetic = 0.0;
+  for (std::size_t i = 0; i < s.size(); ++i) twice_kinetic += s.mass[i] * s.velocity[i].squaredNorm();
+  const double kT = twice_kinetic / (3.0 * (static_cast<double>(s.size()) - 1.0));
+  const double pi = std::acos(-1.0);
+  const double g_contact = (1.0 - eta / 2.0) / std::pow(1.0 - eta, 3);
+  const double enskog = 4.0 * n_density * std::sqrt(pi * kT) * g_contact;
+  const double measured = 2.0 * static_cast<double>(stats.collisions) /
+                          (static_cast<double>(s.size()) * t_measure);
+  std::printf("Enskog: n = %.4f, kT = %.4f, Gamma measured %.4f vs theory %.4f (%.2f%%), "
+              "%ld collisions\n", n_density, kT, measured, enskog, 100.0 * (measured / enskog - 1.0),
+              stats.collisions);
+  EXPECT_NEAR(n_density, 0.5, 1e-3);
+  EXPECT_NEAR(measured / enskog, 1.0, 0.02);
+}
+
+}  // namespace
