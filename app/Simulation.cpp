@@ -170,7 +170,7 @@ void Simulation::write_checkpoint(const std::string& reason) {
   root.set_attribute("version", std::string(GRAINWAVE_VERSION));
   root.set_attribute("scene", scene_.name());
   root.set_attribute("scene_sha256", scene_.sha256());
-  root.set_attribute("scene_text", scene_.text());
+  root.write_text("scene_text", scene_.text());
   root.set_attribute("reason", reason);
   root.set_attribute("step", static_cast<std::int64_t>(clock_.step));
   root.set_attribute("time", clock_.t);
@@ -179,8 +179,7 @@ void Simulation::write_checkpoint(const std::string& reason) {
   root.set_attribute("wall_s", clock_.wall_before + wall_);
   root.set_attribute("step_wall_s", clock_.step_wall_before + step_wall_);
   root.set_attribute("ranks", static_cast<std::int64_t>(mpi::size()));
-  for (const auto& s : series_)
-    root.set_attribute("series_" + s.path().stem().string(), s.serialise());
+  for (const auto& s : series_) root.write_text("series_" + s.path().stem().string(), s.serialise());
   {
     auto g = root.create_group("system");
     system_->write_checkpoint(g);
@@ -219,9 +218,9 @@ void Simulation::read_checkpoint(const fs::path& path) {
   clock_.wall_before = root.real_attribute("wall_s");
   clock_.step_wall_before = root.real_attribute("step_wall_s");
   for (const auto& attr : {std::string("particles"), std::string("fields")}) {
-    if (!root.has_attribute("series_" + attr)) continue;
+    if (!root.has("series_" + attr)) continue;
     series_.emplace_back(folder_ / (attr + ".xmf"));
-    series_.back().restore(root.text_attribute("series_" + attr));
+    series_.back().restore(root.read_text("series_" + attr));
   }
   system_->read_checkpoint(root.open_group("system"));
   checkpoints_.push_back(path);
@@ -301,9 +300,14 @@ int Simulation::run() {
     } else {
       system_->save_good_state();
       Stopwatch step_clock;
-      system_->advance(clock_.t, dt);
+      try {
+        system_->advance(clock_.t, dt);
+      } catch (const NumericalFailure& e) {  // a module that detects its own failure mid-step
+        failure = e.what_failed() + (e.where().empty() ? "" : " at " + e.where());
+      }
       step_wall_ += step_clock.seconds();
-      if (auto bad = system_->check_state()) failure = *bad;
+      if (failure.empty())
+        if (auto bad = system_->check_state()) failure = *bad;
     }
     // All ranks agree on failure or an interrupt before anything is written.
     const int local_flags = (failure.empty() ? 0 : 1) | (g_stop_requested ? 2 : 0);

@@ -86,6 +86,7 @@ int main(int argc, char** argv) {
     sub->add_option("--set", overrides, "override a scene key: section.key=value (repeatable)")
         ->allow_extra_args(false);
   };
+  app.fallthrough();  // -q/-v also after the verb: grainwave run scene.toml -q
   auto* run = app.add_subcommand("run", "run a scene");
   add_scene_options(run);
   run->add_option("--out", out_dir, "output folder (default: [output] folder or out/<scene>)");

@@ -193,6 +193,19 @@ std::int64_t Hdf5Group::write_rows(const std::string& name, const std::int64_t* 
   return write_distributed(id(), comm_, name, H5T_NATIVE_INT64, data, rows, components);
 }
 
+void Hdf5Group::write_text(const std::string& name, const std::string& text) {
+  if (text.empty()) return;  // a zero-length dataset cannot be written; read_text gives ""
+  const bool root = mpi::rank(comm_) == 0;
+  write_distributed(id(), comm_, name, H5T_NATIVE_CHAR, text.data(), root ? text.size() : 0, 1);
+}
+
+std::string Hdf5Group::read_text(const std::string& name) const {
+  if (!has(name)) return {};
+  const auto n = shape(name).at(0);
+  auto bytes = read_distributed<char>(id(), name, H5T_NATIVE_CHAR, 0, n);
+  return {bytes.begin(), bytes.end()};
+}
+
 std::vector<std::uint64_t> Hdf5Group::shape(const std::string& name) const {
   Handle dataset(check(H5Dopen2(id(), name.c_str(), H5P_DEFAULT), "open dataset " + name));
   Handle space(check(H5Dget_space(dataset.get()), "get dataspace"));

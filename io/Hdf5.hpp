@@ -59,6 +59,10 @@ class Hdf5Group {
                           std::size_t components = 1);
   std::int64_t write_rows(const std::string& name, const std::int64_t* data, std::size_t rows,
                           std::size_t components = 1);
+  /// Collective: stores text of any length (attributes are limited to 64 KiB) as a byte
+  /// dataset; every rank passes the same text, rank 0 writes it.
+  void write_text(const std::string& name, const std::string& text);
+  std::string read_text(const std::string& name) const;
   /// Dataset shape ({N} or {N, components}).
   std::vector<std::uint64_t> shape(const std::string& name) const;
   /// Reads rows [first, first + count) of a dataset (independent I/O).

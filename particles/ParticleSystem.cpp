@@ -7,10 +7,12 @@
 #include <limits>
 #include <numbers>
 #include <numeric>
+#include <sstream>
 #include <type_traits>
 #include <unordered_map>
 
 #include "core/Mpi.hpp"
+#include "io/AtomicFile.hpp"
 
 namespace grainwave::particles {
 
@@ -61,6 +63,26 @@ void ParticleSystem::declare(SceneSchema& schema) {
          "initial random velocities: root-mean-square speed (zero net momentum)")
       .at_least(0);
   s.integer("seed", 12345, "random seed for placement and velocities");
+  s.text("collisions", "auto",
+         "hard-sphere collisions: none, retrospective (after each step; any forces), "
+         "event_driven (equal accelerations only), or auto (event_driven when allowed)")
+      .one_of({"none", "auto", "retrospective", "event_driven"});
+  s.real("restitution", 1.0, "coefficient of restitution e (constant model)").in_range(0, 1);
+  s.real("friction", 0.0, "Coulomb friction coefficient mu of the collisions").at_least(0);
+  s.text("restitution_model", "constant",
+         "constant e, or velocity_dependent (000 Eq. 2.62: elastic below the yield velocity)")
+      .one_of({"constant", "velocity_dependent"});
+  s.real("yield_stress", 1.0, "Y of the velocity-dependent restitution model").above(0);
+  s.real("effective_modulus", 1.0, "E* of the velocity-dependent restitution model").above(0);
+  s.real("overlap_tolerance", 1e-10,
+         "largest overlap allowed after a step, relative to the smaller radius; deeper stops "
+         "the run")
+      .above(0);
+  s.real("statistics_start", 0.0,
+         "simulated time after which the collision frequency is measured (equilibration)")
+      .at_least(0);
+  s.flag("record_collisions", false,
+         "write every collision (time, ids) to collisions.csv (small systems)");
 
   auto& p = schema.section("particle",
                            "One explicitly placed particle (used with particles.placement = "
@@ -89,18 +111,66 @@ ParticleSystem::ParticleSystem(const Scene& scene) {
       s.fail(axes[k], "a periodic face needs a periodic opposite face");
     domain_.face[static_cast<std::size_t>(k)] = {lo, hi};
   }
-  for (int k = 0; k < domain_.dimension; ++k)
-    if (domain_.face[static_cast<std::size_t>(k)][0] == FaceKind::kWall ||
-        domain_.face[static_cast<std::size_t>(k)][1] == FaceKind::kWall)
-      s.fail(axes[k], "wall faces need particle collisions, which this build does not have yet",
-             "use periodic or open faces");
   gravity_ = vec3(s.reals("gravity"));
   if (domain_.dimension == 2 && gravity_.z() != 0)
     s.fail("gravity", "a 2D scene needs gravity with z = 0");
+
+  const std::string collisions = s.text("collisions");
+  bool has_open = false, has_wall = false;
+  for (int k = 0; k < domain_.dimension; ++k)
+    for (auto f : domain_.face[static_cast<std::size_t>(k)]) {
+      has_open = has_open || f == FaceKind::kOpen;
+      has_wall = has_wall || f == FaceKind::kWall;
+    }
+  if (collisions == "none") {
+    mode_ = CollisionMode::kNone;
+    if (has_wall)
+      s.fail("collisions", "wall faces need collisions", "set collisions = \"auto\"");
+  } else if (collisions == "retrospective") {
+    mode_ = CollisionMode::kRetrospective;
+  } else {
+    // Particles alone feel only gravity, so every acceleration is equal; open faces remove
+    // particles mid-step, which the event calendar does not handle.
+    if (collisions == "event_driven" && has_open)
+      s.fail("collisions", "event_driven collisions do not support open faces",
+             "use retrospective or auto");
+    mode_ = has_open ? CollisionMode::kRetrospective : CollisionMode::kEventDriven;
+  }
+  replicated_ = mode_ != CollisionMode::kNone;
+  law_.restitution = s.real("restitution");
+  law_.friction = s.real("friction");
+  law_.model = s.text("restitution_model") == "velocity_dependent"
+                   ? hardsphere::RestitutionModel::kVelocityDependent
+                   : hardsphere::RestitutionModel::kConstant;
+  law_.plastic.yield_stress = s.real("yield_stress");
+  law_.plastic.effective_modulus = s.real("effective_modulus");
+  overlap_tolerance_ = s.real("overlap_tolerance");
+  record_collisions_ = s.flag("record_collisions");
+  statistics_start_ = s.real("statistics_start");
+  if (mode_ == CollisionMode::kRetrospective) {
+    hardsphere::RetrospectiveSettings settings;
+    settings.law = law_;
+    retrospective_ = std::make_unique<hardsphere::RetrospectiveCollider>(settings);
+  } else if (mode_ == CollisionMode::kEventDriven) {
+    hardsphere::EventDrivenSettings settings;
+    settings.law = law_;
+    event_driven_ = std::make_unique<hardsphere::EventDrivenCollider>(settings);
+  }
   place_initial_particles(scene);
+  if (mode_ != CollisionMode::kNone) {
+    const double overlap = hardsphere::max_relative_overlap(store_, domain_, overlap_cells_);
+    if (overlap > overlap_tolerance_)
+      s.fail("placement", fmt::format("initial particles overlap by {:.3g} of a radius", overlap));
+  }
   initial_count_ = global_count();
   initial_energy_ = kinetic_energy();
+  initial_translational_energy_ = translational_energy();
   initial_momentum_ = linear_momentum();
+  totals_csv_ =
+      "step,t,kinetic_energy,px,py,pz,Lx,Ly,Lz,collisions,boundary_collisions,wall_hits,"
+      "crossings\n";
+  if (record_collisions_) collisions_csv_ = "t,id_a,id_b\n";
+  record_totals(0, 0);
 }
 
 void ParticleSystem::place_initial_particles(const Scene& scene) {
@@ -238,12 +308,14 @@ void ParticleSystem::place_initial_particles(const Scene& scene) {
   // Keep this rank's contiguous slice.
   const auto n = static_cast<std::int64_t>(all.size());
   const std::int64_t rank = mpi::rank(), ranks = mpi::size();
-  const std::int64_t first = n * rank / ranks, last = n * (rank + 1) / ranks;
+  const std::int64_t first = replicated_ ? 0 : n * rank / ranks;
+  const std::int64_t last = replicated_ ? n : n * (rank + 1) / ranks;
   store_.reserve(static_cast<std::size_t>(last - first));
   for (std::int64_t i = first; i < last; ++i) {
     const auto& q = all[static_cast<std::size_t>(i)];
     const double m = particle_mass(dim, q.radius, q.density);
     store_.add(i, q.x, q.v, q.omega, q.radius, m, solid_inertia(dim, m, q.radius));
+    store_.force.back() = m * gravity_;  // body force held constant over every step
   }
 }
 
@@ -254,24 +326,125 @@ std::string ParticleSystem::describe() const {
     faces += fmt::format("{}{}:{}/{}", k ? ", " : "", "xyz"[k],
                          names[static_cast<int>(domain_.face[static_cast<std::size_t>(k)][0])],
                          names[static_cast<int>(domain_.face[static_cast<std::size_t>(k)][1])]);
-  return fmt::format("particles: {} {} in a {}D box ({}), free flight, gravity ({}, {}, {})",
+  const char* mode = mode_ == CollisionMode::kNone            ? "free flight, no collisions"
+                     : mode_ == CollisionMode::kEventDriven ? "event-driven hard spheres"
+                                                            : "retrospective hard spheres";
+  return fmt::format("particles: {} {} in a {}D box ({}), {}{}{}, gravity ({}, {}, {})",
                      global_count(), domain_.dimension == 3 ? "spheres" : "disks",
-                     domain_.dimension, faces, gravity_.x(), gravity_.y(), gravity_.z());
+                     domain_.dimension, faces, mode, mode_ == CollisionMode::kNone ? "" : " (",
+                     mode_ == CollisionMode::kNone ? "" : hardsphere::describe(law_) + ")",
+                     gravity_.x(), gravity_.y(), gravity_.z());
 }
 
 double ParticleSystem::max_stable_dt() const { return std::numeric_limits<double>::infinity(); }
 
-void ParticleSystem::advance(double /*t*/, double dt) {
-  ScopedTimer timer(timers_, "free_flight");
+double ParticleSystem::total(double local) const { return replicated_ ? local : mpi::sum(local); }
+
+void ParticleSystem::save_good_state() {
+  good_ = store_;
+  good_tally_ = tally_;
+}
+
+void ParticleSystem::restore_good_state() {
+  store_ = good_;
+  tally_ = good_tally_;
+}
+
+void ParticleSystem::free_flight(double dt) {
   const std::size_t n = store_.size();
   for (std::size_t i = 0; i < n; ++i) {
     if (store_.is_fixed(i)) continue;
-    const Vec3 a = gravity_ + store_.force[i] / store_.mass[i];
+    const Vec3 a = store_.force[i] / store_.mass[i];
     store_.position[i] += store_.velocity[i] * dt + 0.5 * a * dt * dt;
     store_.velocity[i] += a * dt;
     store_.angular_velocity[i] += store_.torque[i] / store_.inertia[i] * dt;
   }
-  apply_boundaries();
+}
+
+void ParticleSystem::advance(double t, double dt) {
+  // Positions before the step, to count periodic crossings (jumps of over half the box).
+  std::vector<Vec3>& before = scratch_position_;
+  before = store_.position;
+  std::vector<std::int64_t>& ids_before = scratch_ids_;
+  ids_before = store_.id;
+  long step_collisions = 0;
+  step_log_.clear();
+  if (mode_ == CollisionMode::kNone) {
+    ScopedTimer timer(timers_, "free_flight");
+    free_flight(dt);
+    apply_boundaries();
+  } else if (mode_ == CollisionMode::kRetrospective) {
+    ScopedTimer timer(timers_, "collisions");
+    retrospective_->record_collisions(&step_log_);
+    const auto stats = retrospective_->step(store_, domain_, dt);
+    step_collisions = stats.collisions;
+    tally_.wall_hits += stats.wall_hits;
+    tally_.removed += stats.removed;
+  } else {
+    ScopedTimer timer(timers_, "collisions");
+    // A fresh calendar each step: the state at a step boundary is then the whole state.
+    event_driven_->initialize(store_, domain_, t);
+    event_driven_->record_collisions(&step_log_);
+    const auto stats = event_driven_->advance_to(store_, domain_, t + dt);
+    step_collisions = stats.collisions;
+    tally_.wall_hits += stats.wall_hits;
+  }
+  tally_.collisions += step_collisions;
+  if (tally_.time >= statistics_start_ * (1 - 1e-12)) {
+    tally_.measured_collisions += step_collisions;
+    tally_.measured_time += dt;
+  }
+  tally_.time += dt;
+  if (record_collisions_)
+    for (const auto& c : step_log_)
+      collisions_csv_ += fmt::format("{},{},{}\n",
+                                     mode_ == CollisionMode::kRetrospective ? t + c.time : c.time,
+                                     c.id_a, c.id_b);
+  // Collisions of a pair whose centres lie on opposite sides of a periodic boundary (seen at
+  // the end of the step): their impulse changes the angular momentum about the origin, like a
+  // crossing does (002 App. A), so they are counted apart for the conservation check.
+  long boundary_collisions = 0;
+  if (!step_log_.empty()) {
+    auto& slot = scratch_slot_of_id_;
+    std::int64_t max_id = 0;
+    for (auto id : store_.id) max_id = std::max(max_id, id);
+    slot.assign(static_cast<std::size_t>(max_id + 1), -1);
+    for (std::size_t i = 0; i < store_.size(); ++i)
+      slot[static_cast<std::size_t>(store_.id[i])] = static_cast<std::int64_t>(i);
+    for (const auto& c : step_log_) {
+      if (c.id_b < 0 || c.id_a > max_id || c.id_b > max_id) continue;  // walls, removed
+      const auto a = slot[static_cast<std::size_t>(c.id_a)], b = slot[static_cast<std::size_t>(c.id_b)];
+      if (a < 0 || b < 0) continue;
+      const Vec3 d = store_.position[static_cast<std::size_t>(a)] - store_.position[static_cast<std::size_t>(b)];
+      for (int k = 0; k < domain_.dimension; ++k)
+        if (domain_.periodic(k) && std::abs(d[k]) > 0.5 * domain_.length()[k]) {
+          ++boundary_collisions;
+          break;
+        }
+    }
+  }
+  if (store_.id == ids_before)
+    for (std::size_t i = 0; i < store_.size(); ++i)
+      for (int k = 0; k < domain_.dimension; ++k)
+        if (domain_.periodic(k) &&
+            std::abs(store_.position[i][k] - before[i][k]) > 0.5 * domain_.length()[k])
+          ++tally_.crossings;
+  if (mode_ != CollisionMode::kNone) {
+    ScopedTimer timer(timers_, "overlap_check");
+    tally_.max_overlap = std::max(
+        tally_.max_overlap, hardsphere::max_relative_overlap(store_, domain_, overlap_cells_));
+  }
+  record_totals(step_collisions, boundary_collisions);
+}
+
+void ParticleSystem::record_totals(long step_collisions, long boundary_collisions) {
+  const double k = kinetic_energy();
+  const Vec3 p = linear_momentum(), l = angular_momentum();
+  const long step = static_cast<long>(temperature_history_.size());
+  totals_csv_ += fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{}\n", step, tally_.time, k,
+                             p.x(), p.y(), p.z(), l.x(), l.y(), l.z(), step_collisions,
+                             boundary_collisions, tally_.wall_hits, tally_.crossings);
+  temperature_history_.emplace_back(tally_.time, translational_energy());
 }
 
 void ParticleSystem::apply_boundaries() {
@@ -285,7 +458,7 @@ void ParticleSystem::apply_boundaries() {
     }
     if (leaves) {
       store_.remove(i);
-      ++removed_;
+      ++tally_.removed;
       continue;
     }
     domain_.wrap(store_.position[i]);
@@ -305,11 +478,18 @@ std::optional<std::string> ParticleSystem::check_state() const {
                          store_.velocity[i].y(), store_.velocity[i].z());
     }
   }
+  if (mode_ != CollisionMode::kNone) {
+    const double overlap = hardsphere::max_relative_overlap(store_, domain_, overlap_cells_);
+    if (overlap > overlap_tolerance_)
+      return fmt::format("particles overlap by {:.3g} of a radius (tolerance {:.3g})", overlap,
+                         overlap_tolerance_);
+  }
   return std::nullopt;
 }
 
 std::int64_t ParticleSystem::global_count() const {
-  return mpi::sum(static_cast<std::int64_t>(store_.size()));
+  return replicated_ ? static_cast<std::int64_t>(store_.size())
+                     : mpi::sum(static_cast<std::int64_t>(store_.size()));
 }
 
 double ParticleSystem::kinetic_energy() const {
@@ -317,13 +497,28 @@ double ParticleSystem::kinetic_energy() const {
   for (std::size_t i = 0; i < store_.size(); ++i)
     e += 0.5 * store_.mass[i] * store_.velocity[i].squaredNorm() +
          0.5 * store_.inertia[i] * store_.angular_velocity[i].squaredNorm();
-  return mpi::sum(e);
+  return total(e);
+}
+
+double ParticleSystem::translational_energy() const {
+  double e = 0;
+  for (std::size_t i = 0; i < store_.size(); ++i)
+    e += 0.5 * store_.mass[i] * store_.velocity[i].squaredNorm();
+  return total(e);
 }
 
 Vec3 ParticleSystem::linear_momentum() const {
   Vec3 p = Vec3::Zero();
   for (std::size_t i = 0; i < store_.size(); ++i) p += store_.mass[i] * store_.velocity[i];
-  return {mpi::sum(p.x()), mpi::sum(p.y()), mpi::sum(p.z())};
+  return {total(p.x()), total(p.y()), total(p.z())};
+}
+
+Vec3 ParticleSystem::angular_momentum() const {
+  Vec3 l = Vec3::Zero();
+  for (std::size_t i = 0; i < store_.size(); ++i)
+    l += store_.inertia[i] * store_.angular_velocity[i] +
+         store_.position[i].cross(store_.mass[i] * store_.velocity[i]);
+  return {total(l.x()), total(l.y()), total(l.z())};
 }
 
 namespace {
@@ -349,8 +544,9 @@ void write_ordered(io::Hdf5Group& g, const std::string& name, const std::vector<
   g.write_rows(name, flat.data(), order.size(), is_vector ? 3 : 1);
 }
 
-void write_store(io::Hdf5Group& g, const ParticleStore& s, bool full) {
-  const auto order = id_order(s);
+/// `local_rows`: false on ranks that hold a replica written by rank 0 (collective all the same).
+void write_store(io::Hdf5Group& g, const ParticleStore& s, bool full, bool local_rows) {
+  const auto order = local_rows ? id_order(s) : std::vector<std::size_t>{};
   write_ordered(g, "position", s.position, order);
   write_ordered(g, "velocity", s.velocity, order);
   write_ordered(g, "angular_velocity", s.angular_velocity, order);
@@ -373,11 +569,20 @@ void write_store(io::Hdf5Group& g, const ParticleStore& s, bool full) {
 std::vector<io::OutputGrid> ParticleSystem::write_output(io::Hdf5File& file,
                                                          const std::string& file_name) {
   ScopedTimer timer(timers_, "output");
-  auto g = file.root().create_group("particles");
-  write_store(g, store_, false);
+  const bool local_rows = !replicated_ || mpi::is_root();
+  {
+    auto g = file.root().create_group("particles");
+    write_store(g, store_, false, local_rows);
+    g.set_attribute("count", global_count());
+    g.set_attribute("dimension", static_cast<std::int64_t>(domain_.dimension));
+  }
+  // The per-step totals (and the collision log) as CSV beside the HDF5 files.
+  if (mpi::is_root()) {
+    const auto folder = file.path().parent_path();
+    io::write_text_atomically(folder / "totals.csv", totals_csv_);
+    if (record_collisions_) io::write_text_atomically(folder / "collisions.csv", collisions_csv_);
+  }
   const long n = static_cast<long>(global_count());
-  g.set_attribute("count", static_cast<std::int64_t>(n));
-  g.set_attribute("dimension", static_cast<std::int64_t>(domain_.dimension));
   const std::string base = file_name + ":/particles/";
   std::vector<io::XdmfArray> arrays = {{"radius", base + "radius", 1},
                                        {"velocity", base + "velocity", 3},
@@ -388,20 +593,35 @@ std::vector<io::OutputGrid> ParticleSystem::write_output(io::Hdf5File& file,
 
 void ParticleSystem::write_checkpoint(io::Hdf5Group& group) {
   auto g = group.create_group("particles");
-  write_store(g, store_, true);
-  g.set_attribute("removed", removed_);
+  write_store(g, store_, true, !replicated_ || mpi::is_root());
+  g.set_attribute("removed", tally_.removed);
+  g.set_attribute("collisions", tally_.collisions);
+  g.set_attribute("wall_hits", tally_.wall_hits);
+  g.set_attribute("crossings", tally_.crossings);
+  g.set_attribute("elapsed", tally_.time);
+  g.set_attribute("max_overlap", tally_.max_overlap);
+  g.set_attribute("measured_collisions", tally_.measured_collisions);
+  g.set_attribute("measured_time", tally_.measured_time);
   g.set_attribute("initial_count", initial_count_);
   g.set_attribute("initial_energy", initial_energy_);
+  g.set_attribute("initial_translational_energy", initial_translational_energy_);
   for (int k = 0; k < 3; ++k)
     g.set_attribute(fmt::format("initial_momentum_{}", k), initial_momentum_[k]);
+  g.write_text("totals_csv", totals_csv_);
+  g.write_text("collisions_csv", collisions_csv_);
+  std::vector<double> history;
+  for (const auto& [t, k] : temperature_history_) history.insert(history.end(), {t, k});
+  g.write_rows("temperature_history", history.data(),
+               mpi::is_root() ? temperature_history_.size() : 0, 2);
 }
 
 void ParticleSystem::read_checkpoint(const io::Hdf5Group& group) {
   const auto g = group.open_group("particles");
   const auto n = static_cast<std::int64_t>(g.shape("id")[0]);
   const std::int64_t rank = mpi::rank(), ranks = mpi::size();
-  const auto first = static_cast<std::uint64_t>(n * rank / ranks);
-  const auto count = static_cast<std::uint64_t>(n * (rank + 1) / ranks) - first;
+  const auto first = replicated_ ? 0 : static_cast<std::uint64_t>(n * rank / ranks);
+  const auto count = replicated_ ? static_cast<std::uint64_t>(n)
+                                 : static_cast<std::uint64_t>(n * (rank + 1) / ranks) - first;
   const auto x = g.read_rows_real("position", first, count);
   const auto v = g.read_rows_real("velocity", first, count);
   const auto w = g.read_rows_real("angular_velocity", first, count);
@@ -414,35 +634,132 @@ void ParticleSystem::read_checkpoint(const io::Hdf5Group& group) {
   const auto flags = g.read_rows_integer("flags", first, count);
   store_.clear();
   for (std::size_t i = 0; i < count; ++i) {
-    auto v3 = [&](const std::vector<double>& a) { return Vec3(a[3 * i], a[3 * i + 1], a[3 * i + 2]); };
+    auto v3 = [&](const std::vector<double>& a) {
+      return Vec3(a[3 * i], a[3 * i + 1], a[3 * i + 2]);
+    };
     store_.add(ids[i], v3(x), v3(v), v3(w), r[i], m[i], inertia[i],
                static_cast<std::uint32_t>(flags[i]));
     store_.force.back() = v3(f);
     store_.torque.back() = v3(t);
   }
-  removed_ = g.integer_attribute("removed");
+  tally_.removed = g.integer_attribute("removed");
+  tally_.collisions = g.integer_attribute("collisions");
+  tally_.wall_hits = g.integer_attribute("wall_hits");
+  tally_.crossings = g.integer_attribute("crossings");
+  tally_.time = g.real_attribute("elapsed");
+  tally_.max_overlap = g.real_attribute("max_overlap");
+  tally_.measured_collisions = g.integer_attribute("measured_collisions");
+  tally_.measured_time = g.real_attribute("measured_time");
   initial_count_ = g.integer_attribute("initial_count");
   initial_energy_ = g.real_attribute("initial_energy");
+  initial_translational_energy_ = g.real_attribute("initial_translational_energy");
   for (int k = 0; k < 3; ++k)
     initial_momentum_[k] = g.real_attribute(fmt::format("initial_momentum_{}", k));
+  totals_csv_ = g.read_text("totals_csv");
+  collisions_csv_ = g.read_text("collisions_csv");
+  const auto rows = g.shape("temperature_history")[0];
+  const auto history = g.read_rows_real("temperature_history", 0, rows);
+  temperature_history_.clear();
+  for (std::size_t i = 0; i < rows; ++i)
+    temperature_history_.emplace_back(history[2 * i], history[2 * i + 1]);
 }
 
 void ParticleSystem::report(io::Json& counts, io::Json& metrics, double step_wall_s,
                             long steps) const {
   const std::int64_t n = global_count();
+  const std::int64_t removed = replicated_ ? tally_.removed : mpi::sum(tally_.removed);
   counts.set("particles", n);
-  counts.set("particles_removed", mpi::sum(removed_));
+  counts.set("particles_removed", removed);
   const double energy = kinetic_energy();
   metrics.set("kinetic_energy", energy);
   // Drifts are only defined for a closed system: no body force doing work, nobody leaving.
-  if (gravity_.isZero() && mpi::sum(removed_) == 0) {
-    metrics.set("momentum_abs_drift", (linear_momentum() - initial_momentum_).norm());
+  const bool closed = gravity_.isZero() && removed == 0;
+  bool walls = false;
+  for (int k = 0; k < domain_.dimension; ++k)
+    walls = walls || domain_.face[static_cast<std::size_t>(k)][0] == FaceKind::kWall;
+  if (closed) {
+    if (!walls) metrics.set("momentum_abs_drift", (linear_momentum() - initial_momentum_).norm());
     metrics.set("energy_rel_drift",
                 initial_energy_ > 0 ? (energy - initial_energy_) / initial_energy_ : 0.0);
   }
   const double particle_steps = static_cast<double>(n) * static_cast<double>(steps);
   metrics.set("particle_steps_per_s", step_wall_s > 0 ? particle_steps / step_wall_s : 0.0);
   metrics.set("bytes_per_particle", static_cast<double>(ParticleStore::bytes_per_particle()));
+  if (mode_ == CollisionMode::kNone) return;
+
+  counts.set("collisions", tally_.collisions);
+  counts.set("wall_hits", tally_.wall_hits);
+  counts.set("periodic_crossings", tally_.crossings);
+  metrics.set("collisions", static_cast<double>(tally_.collisions));
+  metrics.set("max_overlap_over_radius", tally_.max_overlap);
+  metrics.set("collisions_per_s",
+              step_wall_s > 0 ? static_cast<double>(tally_.collisions + tally_.wall_hits) / step_wall_s
+                              : 0.0);
+  if (tally_.measured_time > 0 && n > 0)
+    metrics.set("collision_frequency", 2.0 * static_cast<double>(tally_.measured_collisions) /
+                                           (static_cast<double>(n) * tally_.measured_time));
+
+  // Enskog's collision frequency for a monodisperse periodic gas (reference README):
+  // Gamma = 4 n sigma^2 sqrt(pi kT/m) g(sigma), g = (1 - eta/2)/(1 - eta)^3 (Carnahan-Starling),
+  // with kT/m = 2 K_trans / (3 N m) and K_trans averaged over the run (constant when elastic).
+  bool monodisperse = n > 0 && domain_.dimension == 3 && gravity_.isZero() && !walls;
+  for (std::size_t i = 1; i < store_.size() && monodisperse; ++i)
+    monodisperse = store_.radius[i] == store_.radius[0] && store_.mass[i] == store_.mass[0];
+  for (int k = 0; k < 3; ++k) monodisperse = monodisperse && domain_.periodic(k);
+  if (monodisperse && !temperature_history_.empty()) {
+    const double sigma = 2 * store_.radius[0], mass = store_.mass[0];
+    const double volume = domain_.length().prod();
+    const double number_density = static_cast<double>(n) / volume;
+    const double eta = number_density * std::numbers::pi / 6 * sigma * sigma * sigma;
+    const double g_contact = (1 - eta / 2) / std::pow(1 - eta, 3);
+    double mean_k = 0, samples = 0;
+    for (const auto& [t, k] : temperature_history_)
+      if (t > statistics_start_ * (1 - 1e-12)) {
+        mean_k += k;
+        samples += 1;
+      }
+    mean_k = samples > 0 ? mean_k / samples : temperature_history_.back().second;
+    const double kT_over_m = 2 * mean_k / (3 * static_cast<double>(n) * mass);
+    metrics.set("packing_fraction", eta);
+    // Enskog applies to an equilibrium (elastic) gas only.
+    if (law_.restitution == 1 && law_.model == hardsphere::RestitutionModel::kConstant)
+      metrics.set("collision_frequency_enskog", 4 * number_density * sigma * sigma *
+                                                    std::sqrt(std::numbers::pi * kT_over_m) *
+                                                    g_contact);
+
+    // Haff's law for a cooling gas: T(t) = T0 / (1 + t/t0)^2, t0 = 6 / ((1 - e^2) omega0),
+    // omega0 = the measured collision frequency over the first steps (temperature barely
+    // changed yet). Compared at every step while the run lasts.
+    const double e = law_.restitution;
+    if (e < 1 && law_.friction == 0 && law_.model == hardsphere::RestitutionModel::kConstant &&
+        temperature_history_.size() > 20) {
+      const auto& h = temperature_history_;
+      // omega0 from the collision rate of the first 5% of the recorded steps (at least 10).
+      const std::size_t window = std::max<std::size_t>(10, h.size() / 20);
+      std::int64_t early = 0;
+      std::istringstream lines(totals_csv_);
+      std::string line;
+      std::getline(lines, line);  // header
+      for (std::size_t row = 0; std::getline(lines, line) && row <= window; ++row) {
+        if (row == 0) continue;
+        std::istringstream cells(line);
+        std::string cell;
+        for (int c = 0; c < 10 && std::getline(cells, cell, ','); ++c)
+          if (c == 9) early += std::stoll(cell);
+      }
+      const double omega0 =
+          2.0 * static_cast<double>(early) / (static_cast<double>(n) * h[window].first);
+      const double t0 = 6.0 / ((1 - e * e) * omega0);
+      double worst = 0;
+      for (const auto& [t, k] : h) {
+        const double haff = h.front().second / std::pow(1 + t / t0, 2);
+        worst = std::max(worst, std::abs(k / haff - 1));
+      }
+      metrics.set("haff_t0", t0);
+      metrics.set("haff_max_rel_dev", worst);
+      metrics.set("temperature_final_over_initial", h.back().second / h.front().second);
+    }
+  }
 }
 
 std::size_t ParticleSystem::memory_bytes() const {
@@ -451,7 +768,8 @@ std::size_t ParticleSystem::memory_bytes() const {
 }
 
 std::string ParticleSystem::progress_note() const {
-  return fmt::format("N {}", store_.size());
+  if (mode_ == CollisionMode::kNone) return fmt::format("N {}", store_.size());
+  return fmt::format("N {}  collisions {}", store_.size(), tally_.collisions);
 }
 
 }  // namespace grainwave::particles
