@@ -113,13 +113,20 @@ double EventDrivenCollider::next_crossing(int i, const Vec3& x, const Vec3& v, i
 
 template <bool kAccelerated>
 void EventDrivenCollider::scan_cell(int i, int cell, const Vec3& x, const Vec3& v, Pending& p) {
-  const Vec3& a = acceleration_;
+  // Locals, not members, in the loop: stores to p would otherwise force reloads (aliasing).
+  const Vec3 a = acceleration_;
+  const double now = now_;
   const double r = flight_[static_cast<std::size_t>(i)].radius;
-  for (int j = head_[static_cast<std::size_t>(cell)]; j >= 0; j = next_[static_cast<std::size_t>(j)]) {
+  const Flight* flight = flight_.data();
+  const int* next = next_.data();
+  double best = p.collision_time;
+  int partner = -1;
+  long checks = 0;
+  for (int j = head_[static_cast<std::size_t>(cell)]; j >= 0; j = next[j]) {
     if (j == i) continue;
-    ++pair_checks_;
-    const Flight& fj = flight_[static_cast<std::size_t>(j)];
-    const double tau = now_ - fj.clock;
+    ++checks;
+    const Flight& fj = flight[j];
+    const double tau = now - fj.clock;
     // Uniform acceleration cancels in the relative motion: only velocities differ.
     Vec3 d = fj.position + fj.velocity * tau - x;
     Vec3 u = fj.velocity - v;
@@ -133,12 +140,17 @@ void EventDrivenCollider::scan_cell(int i, int cell, const Vec3& x, const Vec3& 
       if (d[axis] > 0.5 * length) d[axis] -= length;
       else if (d[axis] < -0.5 * length) d[axis] += length;
     }
-    const double when = now_ + ballistic_contact_time_or_never(d, u, r + fj.radius);
-    if (when < p.collision_time) {
-      p.collision_time = when;
-      p.partner = j;
-      p.partner_count = counter_[static_cast<std::size_t>(j)];
+    const double when = now + ballistic_contact_time_or_never(d, u, r + fj.radius);
+    if (when < best) {
+      best = when;
+      partner = j;
     }
+  }
+  pair_checks_ += checks;
+  if (partner >= 0) {
+    p.collision_time = best;
+    p.partner = partner;
+    p.partner_count = counter_[static_cast<std::size_t>(partner)];
   }
 }
 
