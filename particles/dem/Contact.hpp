@@ -12,6 +12,8 @@
 //   m*     (1/m_i + 1/m_j)^-1 (Eq. 3.11), R* = (1/R_i + 1/R_j)^-1 with a wall of infinite radius.
 #include "particles/ParticleStore.hpp"
 
+#include <Eigen/Geometry>
+
 #include <cstdint>
 
 namespace grainwave::particles::dem {

@@ -44,7 +44,7 @@ ContactHistoryEntry* ContactHistory::touch(std::int64_t a, std::int64_t b) {
   while (true) {
     ContactHistoryEntry& e = slots_[k];
     if (e.last_step < 0) {
-      e = ContactHistoryEntry{a, b, step_, Vec3::Zero(), Vec3::Zero()};
+      e = ContactHistoryEntry{a, b, step_, Vec3::Zero(), Vec3::Zero(), true};
       ++occupied_;
       return &e;
     }
@@ -52,6 +52,7 @@ ContactHistoryEntry* ContactHistory::touch(std::int64_t a, std::int64_t b) {
       if (!live(e)) {
         e.displacement.setZero();
         e.stage_velocity.setZero();
+        e.is_new = true;
       }
       e.last_step = step_;
       return &e;

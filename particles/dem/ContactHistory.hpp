@@ -22,7 +22,8 @@ struct ContactHistoryEntry {
   std::int64_t second = -1;
   std::int64_t last_step = -1;  ///< step of the last touch; -1 marks an empty slot
   Vec3 displacement = Vec3::Zero();    ///< committed tangential displacement δ_t
-  Vec3 stage_velocity = Vec3::Zero();  ///< v_t at the first RK2 stage (trapezoidal update)
+  Vec3 stage_velocity = Vec3::Zero();  ///< v_t of the previous evaluation (trapezoidal update)
+  bool is_new = true;  ///< not yet seen by a tangential law (stage_velocity meaningless)
 };
 
 class ContactHistory {

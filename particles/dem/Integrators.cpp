@@ -34,6 +34,12 @@ void VelocityVerlet::step(ParticleStore& store, ContactForceField& field, double
     field.evaluate(store, HistoryStage::kPredict, dt);
     have_forces_ = true;
   }
+  // Kick and drift, then a second kick with the old forces: the velocities seen by the force
+  // evaluation are the prediction v_n + Δt a_n of v_{n+1} rather than the half-step velocity,
+  // so velocity-dependent forces (dashpots, drag) are second-order accurate; the final kick
+  // swaps the old half of the acceleration for the new one.
+  old_force_.assign(field.force().begin(), field.force().end());
+  old_torque_.assign(field.torque().begin(), field.torque().end());
   kick(store, field, 0.5 * dt);
   const Domain& domain = field.domain();
   for (std::size_t i = 0; i < store.size(); ++i) {
@@ -41,8 +47,16 @@ void VelocityVerlet::step(ParticleStore& store, ContactForceField& field, double
     store.position[i] += dt * store.velocity[i];
     domain.wrap(store.position[i]);
   }
-  field.evaluate(store, HistoryStage::kSingle, dt);
   kick(store, field, 0.5 * dt);
+  field.evaluate(store, HistoryStage::kSingle, dt);
+  const auto& f = field.force();
+  const auto& t = field.torque();
+  for (std::size_t i = 0; i < store.size(); ++i) {
+    const double inv_m = store.inverse_mass(i);
+    if (inv_m == 0.0) continue;
+    store.velocity[i] += (0.5 * dt * inv_m) * (f[i] - old_force_[i]);
+    store.angular_velocity[i] += (0.5 * dt / store.inertia[i]) * (t[i] - old_torque_[i]);
+  }
 }
 
 void RungeKutta2::step(ParticleStore& store, ContactForceField& field, double dt) {

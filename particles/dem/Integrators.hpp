@@ -1,7 +1,8 @@
 #pragma once
 // Time integration of m dv/dt = F, I dω/dt = T (002 Eqs 3.1–3.2) for the DEM.
-//   VelocityVerlet   kick–drift–kick, one force evaluation per step, symplectic: the method to
-//                    use for long elastic runs (bounded energy error).
+//   VelocityVerlet   kick–drift–kick, one force evaluation per step, symplectic for
+//                    position-dependent forces: the method for long elastic runs. Forces are
+//                    evaluated with the predicted velocity v_n + Δt a_n so dashpots stay 2nd order.
 //   RungeKutta2      Heun's second-order Runge–Kutta of 002 §3.2.3: predictor at t_n, corrector
 //                    at the predicted state, trapezoidal average; two evaluations per step.
 // The step is Δt = τ/N with the contact duration τ of 002 Eq. 3.17 (or the Hertz equivalent)
@@ -27,6 +28,7 @@ class VelocityVerlet {
 
  private:
   bool have_forces_ = false;
+  std::vector<Vec3> old_force_, old_torque_;
 };
 
 class RungeKutta2 {

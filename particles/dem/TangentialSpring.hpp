@@ -2,8 +2,8 @@
 // Shared machinery of the tangential laws that store a displacement (002 Eqs 3.12 and 3.15):
 // the Coulomb-limited spring itself, the rotation of the stored displacement into the current
 // contact plane (3D contacts roll and the plane turns between steps, 002 §3.2.2 / ref. [83]),
-// and how the history advances within velocity Verlet (one evaluation per step) and the
-// two-stage RK2 (Heun applied to δ_t as to the positions).
+// and how the history advances: trapezoidal in v_t in both velocity Verlet (one evaluation per
+// step, v_t of the previous step kept in the entry) and RK2 (Heun applied to δ_t as to x).
 #include "particles/dem/ContactHistory.hpp"
 #include "particles/dem/ContactLaw.hpp"
 
@@ -49,21 +49,25 @@ void evaluate_with_history(const Law& law, std::span<Contact> contacts, HistoryS
     const Vec3 vt = c.tangential_velocity();
     Vec3 xi = rotate_into_plane(h.displacement, c.normal);
     if (stage == HistoryStage::kSingle) {
-      xi += dt * vt;  // δ_t(n+1) = δ_t(n) + Δt v_t(n+1/2) with Verlet's half-step velocities
+      // Trapezoidal δ_t(n+1) = δ_t(n) + Δt/2 (v_t(n) + v_t(n+1)); a new contact has no v_t(n).
+      const Vec3 vt_old = h.is_new ? vt : rotate_into_plane(h.stage_velocity, c.normal);
+      xi += 0.5 * dt * (vt_old + vt);
       c.tangential_force = law.spring_force(c, vt, xi);
       h.displacement = xi;
+      h.stage_velocity = vt;
     } else if (stage == HistoryStage::kPredict) {
       c.tangential_force = law.spring_force(c, vt, xi);
       h.displacement = xi;
       h.stage_velocity = vt;
     } else {
-      const Vec3 vt_first = rotate_into_plane(h.stage_velocity, c.normal);
+      const Vec3 vt_first = h.is_new ? vt : rotate_into_plane(h.stage_velocity, c.normal);
       Vec3 predicted = xi + dt * vt_first;
       c.tangential_force = law.spring_force(c, vt, predicted);
       Vec3 committed = xi + 0.5 * dt * (vt_first + vt);
       law.spring_force(c, vt, committed);  // apply the Coulomb limit to the committed value
       h.displacement = committed;
     }
+    h.is_new = false;
   }
 }
 

@@ -12,6 +12,8 @@
 #include "particles/Domain.hpp"
 #include "particles/ParticleStore.hpp"
 
+#include <Eigen/Geometry>
+
 #include <algorithm>
 #include <cstdint>
 #include <vector>
