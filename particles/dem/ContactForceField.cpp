@@ -16,26 +16,28 @@ ContactForceField::ContactForceField(ContactModel model, const Domain& domain,
 }
 
 void ContactForceField::collect_particle_contacts(const ParticleStore& store) {
-  cells_.for_each_candidate_pair([&](std::uint32_t i, std::uint32_t j) {
-    const double inverse_mass_sum = store.inverse_mass(i) + store.inverse_mass(j);
-    if (inverse_mass_sum == 0.0) return;  // two fixed particles never interact
-    const Vec3 d = domain_.separation(store.position[i], store.position[j]);
-    const double reach = store.radius[i] + store.radius[j];
-    const double distance2 = d.squaredNorm();
-    if (distance2 >= reach * reach || distance2 == 0.0) return;
-    const double distance = std::sqrt(distance2);
-    Contact& c = contacts_.emplace_back();
-    c.i = i;
-    c.partner = j;
-    c.is_wall = false;
-    c.normal = d / distance;
-    c.overlap = reach - distance;
-    const Vec3 spin = store.radius[i] * store.angular_velocity[i] +
-                      store.radius[j] * store.angular_velocity[j];
-    c.relative_velocity = (store.velocity[j] - store.velocity[i]) - spin.cross(c.normal);
-    c.effective_mass = 1.0 / inverse_mass_sum;
-    c.effective_radius = effective_radius(store.radius[i], store.radius[j]);
-  });
+  cells_.for_each_touching_pair(
+      [&](std::uint32_t i, std::uint32_t j, const Vec3& d, double distance2) {
+        add_particle_contact(store, i, j, d, distance2);
+      });
+}
+
+void ContactForceField::add_particle_contact(const ParticleStore& store, std::uint32_t i,
+                                             std::uint32_t j, const Vec3& d, double distance2) {
+  const double inverse_mass_sum = inverse_mass_[i] + inverse_mass_[j];
+  if (inverse_mass_sum == 0.0 || distance2 == 0.0) return;  // fixed pairs never interact
+  const double distance = std::sqrt(distance2);
+  const double ri = store.radius[i], rj = store.radius[j];
+  Contact& c = contacts_.emplace_back();
+  c.i = i;
+  c.partner = j;
+  c.is_wall = false;
+  c.normal = d / distance;
+  c.overlap = ri + rj - distance;
+  const Vec3 spin = ri * store.angular_velocity[i] + rj * store.angular_velocity[j];
+  c.relative_velocity = (store.velocity[j] - store.velocity[i]) - spin.cross(c.normal);
+  c.effective_mass = 1.0 / inverse_mass_sum;
+  c.effective_radius = effective_radius(ri, rj);
 }
 
 void ContactForceField::add_wall_contact(const ParticleStore& store, std::size_t i,
@@ -95,6 +97,8 @@ void ContactForceField::evaluate(const ParticleStore& store, HistoryStage stage,
     cell_width = 2.0 * largest;
   }
   contacts_.clear();
+  inverse_mass_.resize(n);
+  for (std::size_t i = 0; i < n; ++i) inverse_mass_[i] = store.inverse_mass(i);
   if (n > 0) {
     cells_.build(store, domain_, cell_width);
     collect_particle_contacts(store);
@@ -102,8 +106,13 @@ void ContactForceField::evaluate(const ParticleStore& store, HistoryStage stage,
   }
 
   if (model_.tangential->needs_history()) {
-    history_.prepare(contacts_.size());
-    for (Contact& c : contacts_) {
+    history_.prepare();
+    for (std::size_t k = 0; k < contacts_.size(); ++k) {
+      if (history_.nearly_full()) {
+        history_.make_room();  // entries moved: look up the contacts done so far again
+        k = 0;
+      }
+      Contact& c = contacts_[k];
       const std::int64_t other = c.is_wall ? ContactHistory::wall_key(c.partner)
                                            : store.id[c.partner];
       c.history = history_.touch(store.id[c.i], other);

@@ -68,6 +68,8 @@ class ContactForceField {
 
  private:
   void collect_particle_contacts(const ParticleStore& store);
+  void add_particle_contact(const ParticleStore& store, std::uint32_t i, std::uint32_t j,
+                            const Vec3& d, double distance2);
   void collect_wall_contacts(const ParticleStore& store);
   void add_wall_contact(const ParticleStore& store, std::size_t i, std::size_t wall_index,
                         const Vec3& wall_point, const Vec3& wall_velocity, const Vec3& normal,
@@ -81,6 +83,7 @@ class ContactForceField {
   LinkedCells cells_;
   ContactHistory history_;
   std::vector<Contact> contacts_;
+  std::vector<double> inverse_mass_;  ///< per slot, 0 for fixed particles
   std::vector<Vec3> force_;
   std::vector<Vec3> torque_;
 };

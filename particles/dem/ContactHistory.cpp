@@ -5,23 +5,23 @@
 
 namespace grainwave::particles::dem {
 
-std::size_t ContactHistory::home(std::int64_t a, std::int64_t b) const {
-  // splitmix64-style finaliser of the two ids; capacity is a power of two.
-  std::uint64_t h = static_cast<std::uint64_t>(a) * 0x9E3779B97F4A7C15ull ^
-                    (static_cast<std::uint64_t>(b) + 0x632BE59BD9B4E019ull);
-  h ^= h >> 31;
-  h *= 0xBF58476D1CE4E5B9ull;
-  h ^= h >> 29;
-  return static_cast<std::size_t>(h) & (slots_.size() - 1);
+std::size_t ContactHistory::home(std::int64_t a, std::int64_t /*b*/) const {
+  // All contacts of the particle with the smaller id a share a home and sit side by side, and
+  // consecutive ids get consecutive homes (4 slots each), so the lookups of a cell-ordered
+  // contact list walk the table nearly sequentially. The high bits are mixed in so that large,
+  // sparse ids (after MPI migration) still spread over the table. Capacity is a power of two.
+  const auto u = static_cast<std::uint64_t>(a);
+  return static_cast<std::size_t>(4 * u + (u >> 16) * 0x9E3779B97F4A7C15ull) & (slots_.size() - 1);
 }
 
-void ContactHistory::prepare(std::size_t incoming) {
-  const std::size_t needed = occupied_ + incoming;
-  if (!slots_.empty() && 2 * needed <= slots_.size()) return;
-  // Purging alone suffices when live entries plus newcomers fill at most a quarter.
+void ContactHistory::prepare() {
+  if (slots_.empty() || 2 * occupied_ > slots_.size()) make_room();
+}
+
+void ContactHistory::make_room() {
   const std::size_t live = live_count();
   std::size_t capacity = std::max<std::size_t>(slots_.size(), 64);
-  while (4 * (live + incoming) > capacity) capacity *= 2;
+  while (8 * (live + 1) > 3 * capacity) capacity *= 2;
   rehash(capacity);
 }
 

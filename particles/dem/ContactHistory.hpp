@@ -6,9 +6,10 @@
 //
 // Open addressing with linear probing in a flat array. An entry belongs to the step in which it
 // was last touched: a contact absent for a whole step is stale and restarts from zero when the
-// pair touches again. Stale entries are purged by prepare(), which is called once per force
-// evaluation before any lookup, so entry pointers stay valid for the rest of that evaluation.
-// After the table has reached its working size nothing is allocated.
+// pair touches again. Stale entries stay in place until a purge (prepare() when the table is
+// half full, or make_room() when touch() is about to fill it); a purge moves entries, so a
+// caller holding entry pointers must look them up again after make_room(). After the table has
+// reached its working size nothing is allocated.
 #include "particles/ParticleStore.hpp"
 
 #include <cstddef>
@@ -34,10 +35,14 @@ class ContactHistory {
 
   /// Advances the step counter: contacts not touched during the previous step become stale.
   void begin_step() { ++step_; }
-  /// Makes room for `incoming` lookups in this evaluation (purges stale entries, may grow).
-  void prepare(std::size_t incoming);
+  /// Called once per force evaluation before the lookups: purges when the table is half full.
+  void prepare();
+  /// True when the next touch() could push the load above 3/4: call make_room() first.
+  bool nearly_full() const { return 4 * (occupied_ + 1) > 3 * slots_.size(); }
+  /// Purges stale entries and doubles the capacity if live entries would fill over 3/8.
+  void make_room();
   /// Entry of the pair (a, b), order-independent; a fresh zeroed entry when the pair was not in
-  /// contact during the current or previous step. Requires prepare() to have made room.
+  /// contact during the current or previous step. Requires !nearly_full().
   ContactHistoryEntry* touch(std::int64_t a, std::int64_t b);
   /// The entry when the pair is live, else nullptr (read-only; does not touch).
   const ContactHistoryEntry* find(std::int64_t a, std::int64_t b) const;

@@ -15,19 +15,21 @@ constexpr int kUpperOffsets[13][3] = {{1, 0, 0},  {-1, 1, 0}, {0, 1, 0},  {1, 1,
                                       {-1, 1, 1}, {0, 1, 1},  {1, 1, 1}};
 }  // namespace
 
-int LinkedCells::upper_neighbours(std::size_t c, std::uint32_t* out) const {
+int LinkedCells::upper_neighbours(std::size_t c, std::uint32_t* out, Vec3* shifts) const {
   const int home[3] = {static_cast<int>(c % static_cast<std::size_t>(cells_[0])),
                        static_cast<int>((c / static_cast<std::size_t>(cells_[0])) %
                                         static_cast<std::size_t>(cells_[1])),
                        static_cast<int>(c / (static_cast<std::size_t>(cells_[0]) *
                                              static_cast<std::size_t>(cells_[1])))};
-  auto neighbour = [&](const int* offset, std::uint32_t& d) {
+  auto neighbour = [&](const int* offset, std::uint32_t& d, Vec3& shift) {
     int idx[3];
+    shift.setZero();
     for (int k = 0; k < 3; ++k) {
       const auto uk = static_cast<std::size_t>(k);
       idx[k] = home[k] + offset[k];
       if (idx[k] >= 0 && idx[k] < cells_[uk]) continue;
       if (!wraps_[uk]) return false;
+      shift[k] = idx[k] < 0 ? -period_[k] : period_[k];
       idx[k] = (idx[k] + cells_[uk]) % cells_[uk];
     }
     d = static_cast<std::uint32_t>(idx[0] + cells_[0] * (idx[1] + cells_[1] * idx[2]));
@@ -36,8 +38,7 @@ int LinkedCells::upper_neighbours(std::size_t c, std::uint32_t* out) const {
   int count = 0;
   if (!short_periodic_axis_) {
     for (const auto& offset : kUpperOffsets) {
-      std::uint32_t d;
-      if (neighbour(offset, d)) out[count++] = d;
+      if (neighbour(offset, out[count], shifts[count])) ++count;
     }
     return count;
   }
@@ -46,8 +47,11 @@ int LinkedCells::upper_neighbours(std::size_t c, std::uint32_t* out) const {
       for (int dx = -1; dx <= 1; ++dx) {
         const int offset[3] = {dx, dy, dz};
         std::uint32_t d;
-        if (!neighbour(offset, d) || d <= c) continue;
-        if (std::find(out, out + count, d) == out + count) out[count++] = d;
+        Vec3 shift;
+        if (!neighbour(offset, d, shift) || d <= c) continue;
+        if (std::find(out, out + count, d) != out + count) continue;
+        shifts[count].setZero();  // short periodic axis: minimum image per pair instead
+        out[count++] = d;
       }
   return count;
 }
@@ -72,8 +76,25 @@ void LinkedCells::build(const ParticleStore& store, const Domain& domain, double
   }
   if (cells != cells_ || cell_start_.empty()) {
     cells_ = cells;
-    cell_start_.resize(static_cast<std::size_t>(cells_[0]) * static_cast<std::size_t>(cells_[1]) *
-                           static_cast<std::size_t>(cells_[2]) + 1);
+    const std::size_t n_cells = static_cast<std::size_t>(cells_[0]) *
+                                static_cast<std::size_t>(cells_[1]) *
+                                static_cast<std::size_t>(cells_[2]);
+    cell_start_.resize(n_cells + 1);
+    // Interior cells: every upper offset stays inside the grid on the axes in use.
+    interior_count_ = 0;
+    for (const auto& offset : kUpperOffsets) {
+      if (domain.dimension == 2 && offset[2] != 0) continue;
+      interior_offsets_[static_cast<std::size_t>(interior_count_++)] =
+          offset[0] + static_cast<long>(cells_[0]) * (offset[1] + static_cast<long>(cells_[1]) * offset[2]);
+    }
+    interior_.assign(n_cells, 0);
+    for (int z = 0; z < cells_[2]; ++z)
+      for (int y = 0; y < cells_[1]; ++y)
+        for (int x = 0; x < cells_[0]; ++x) {
+          const bool inside = x >= 1 && x + 1 < cells_[0] && y >= 1 && y + 1 < cells_[1] &&
+                              (domain.dimension == 2 || (z >= 1 && z + 1 < cells_[2]));
+          interior_[static_cast<std::size_t>(x + cells_[0] * (y + cells_[1] * z))] = inside ? 1 : 0;
+        }
   }
   lo_ = domain.lo;
   short_periodic_axis_ = false;
@@ -82,10 +103,12 @@ void LinkedCells::build(const ParticleStore& store, const Domain& domain, double
     wraps_[uk] = k < domain.dimension && domain.periodic(k);
     if (wraps_[uk] && cells_[uk] < 3) short_periodic_axis_ = true;
     inverse_width_[k] = k < domain.dimension ? cells_[uk] / length[k] : 0.0;
+    period_[k] = wraps_[uk] ? length[k] : 0.0;
   }
 
   cell_of_.resize(n);
   sorted_.resize(n);
+  packed_.resize(n);
   std::fill(cell_start_.begin(), cell_start_.end(), 0u);
   for (std::size_t i = 0; i < n; ++i) {
     int idx[3] = {0, 0, 0};
@@ -105,6 +128,7 @@ void LinkedCells::build(const ParticleStore& store, const Domain& domain, double
   for (std::size_t i = 0; i < n; ++i) sorted_[cell_start_[cell_of_[i]]++] = static_cast<std::uint32_t>(i);
   for (std::size_t c = cell_start_.size() - 1; c > 0; --c) cell_start_[c] = cell_start_[c - 1];
   cell_start_[0] = 0;
+  for (std::size_t a = 0; a < n; ++a) packed_[a] = {store.position[sorted_[a]], store.radius[sorted_[a]]};
 }
 
 }  // namespace grainwave::particles::dem

@@ -1,4 +1,5 @@
-// Linked cells against an O(N²) search: every touching pair found exactly once, periodic or not.
+// Linked cells against an O(N²) search: every touching pair found exactly once, with the
+// minimum-image separation, periodic or not.
 #include "particles/dem/LinkedCells.hpp"
 
 #include <gtest/gtest.h>
@@ -38,10 +39,14 @@ void check(const gw::Domain& domain, int n, double r_max, unsigned seed) {
   dem::LinkedCells cells;
   cells.build(s, domain, 2.0 * largest);
   std::multiset<std::pair<int, int>> found;
-  cells.for_each_candidate_pair([&](std::uint32_t i, std::uint32_t j) {
-    if (domain.separation(s.position[i], s.position[j]).norm() < s.radius[i] + s.radius[j])
-      found.insert({static_cast<int>(std::min(i, j)), static_cast<int>(std::max(i, j))});
+  double worst_separation_error = 0.0;
+  cells.for_each_touching_pair([&](std::uint32_t i, std::uint32_t j, const Vec3& d, double d2) {
+    const Vec3 expected_d = domain.separation(s.position[i], s.position[j]);
+    worst_separation_error = std::max(
+        {worst_separation_error, (d - expected_d).norm(), std::abs(d2 - expected_d.squaredNorm())});
+    found.insert({static_cast<int>(std::min(i, j)), static_cast<int>(std::max(i, j))});
   });
+  EXPECT_LT(worst_separation_error, 1e-12);
   const auto expected = brute_force(s, domain);
   EXPECT_GT(expected.size(), 0u);
   EXPECT_EQ(found.size(), expected.size()) << "a pair was reported twice or missed";
@@ -88,6 +93,6 @@ TEST(LinkedCells, ParticlesOutsideNonPeriodicBoxAreClamped) {
   dem::LinkedCells cells;
   cells.build(s, d, 0.2);
   int pairs = 0;
-  cells.for_each_candidate_pair([&](std::uint32_t, std::uint32_t) { ++pairs; });
+  cells.for_each_touching_pair([&](std::uint32_t, std::uint32_t, const Vec3&, double) { ++pairs; });
   EXPECT_EQ(pairs, 1);
 }
