@@ -5,6 +5,10 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
+
+#include <numbers>
+
 namespace gw = grainwave::particles;
 namespace dem = grainwave::particles::dem;
 using gw::Vec3;
@@ -98,4 +102,49 @@ TEST(ContactHistory, SurvivesSwappingSlots) {
   dem::ContactForceField fresh(model, domain);
   fresh.evaluate(swapped, dem::HistoryStage::kPredict, dt);
   EXPECT_GT((fresh.force()[0] - field_swapped.force()[0]).norm(), 1e-6);
+}
+
+TEST(ContactHistory, StoredDisplacementTurnsWithTheContactPlane) {
+  // A pair loaded tangentially, then turned rigidly by 45° about z (the axis normal to both the
+  // contact normal and the stored displacement): the stored δ_t must turn with it, so the spring
+  // force stays tangential with its magnitude (002 §3.2.2: "rotation of the contact plane").
+  gw::Domain domain;
+  for (auto& axis : domain.face) axis = {gw::FaceKind::kOpen, gw::FaceKind::kOpen};
+  domain.lo = Vec3::Constant(-1.0);
+  domain.hi = Vec3::Constant(1.0);
+  const double k_t = 1e3, dt = 1e-3;
+  auto model = dem::make_contact_model("linear_spring_dashpot", {{"stiffness", 1e4}},
+                                       "coulomb_spring", {{"stiffness", k_t}, {"friction", 10.0}});
+  dem::ContactForceField field(model, domain);
+  gw::ParticleStore s;
+  s.add(1, Vec3(-0.099, 0, 0), Vec3::Zero(), Vec3::Zero(), 0.1, 1.0, 0.004);
+  s.add(2, Vec3(0.099, 0, 0), Vec3(0, 1.0, 0), Vec3::Zero(), 0.1, 1.0, 0.004);
+  field.evaluate(s, dem::HistoryStage::kSingle, dt);  // δ_t = Δt v_t = 1e-3 ŷ
+  ASSERT_NEAR(field.history().find(1, 2)->displacement.y(), 1e-3, 1e-15);
+
+  const Eigen::Matrix3d turn = Eigen::AngleAxisd(std::numbers::pi / 4, Vec3::UnitZ()).toRotationMatrix();
+  s.position[0] = turn * s.position[0];
+  s.position[1] = turn * s.position[1];
+  s.velocity[1].setZero();
+  field.evaluate(s, dem::HistoryStage::kPredict, dt);  // uses the stored δ_t, adds nothing
+  const Vec3 n = (s.position[1] - s.position[0]).normalized();
+  const Vec3 tangential = field.force()[0] - field.force()[0].dot(n) * n;
+  EXPECT_NEAR((tangential - k_t * 1e-3 * (turn * Vec3::UnitY())).norm(), 0.0, 1e-12);
+
+  // A small turn about a general axis. Positions cannot reveal a twist about the line of
+  // centres, so the reference is the smallest rotation taking the old normal to the new one;
+  // projection plus rescaling matches it to O(θ²).
+  const double theta = 1e-2;
+  const Vec3 n1 = (s.position[1] - s.position[0]).normalized();
+  const Eigen::Matrix3d tilt = Eigen::AngleAxisd(theta, Vec3(1, 2, 3).normalized()).toRotationMatrix();
+  const Vec3 before = field.history().find(1, 2)->displacement;
+  s.position[0] = tilt * s.position[0];
+  s.position[1] = tilt * s.position[1];
+  field.evaluate(s, dem::HistoryStage::kPredict, dt);
+  const Vec3 after = field.history().find(1, 2)->displacement;
+  const Vec3 n2 = (s.position[1] - s.position[0]).normalized();
+  EXPECT_NEAR(after.dot(n2), 0.0, 1e-18);
+  EXPECT_NEAR(after.norm(), before.norm(), 1e-16);
+  const Eigen::Matrix3d swing = Eigen::Quaterniond::FromTwoVectors(n1, n2).toRotationMatrix();
+  EXPECT_LT((after - swing * before).norm(), theta * theta * before.norm());
 }

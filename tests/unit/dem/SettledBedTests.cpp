@@ -34,10 +34,12 @@ TEST(SettledBed, PackingFractionOfPouredMonodisperseSpheres) {
   domain.face[1] = {gw::FaceKind::kWall, gw::FaceKind::kOpen};
   dem::ContactForceSettings settings;
   settings.gravity = Vec3(0, -1.0, 0);
-  const double k_n = 2000.0;
+  // Soft enough for a quick run (overlap under the full bed ≈ 0.005 d) and strongly damped, as
+  // 002 §3.2.4 suggests for generating packed beds.
+  const double k_n = 1000.0;
   auto model = dem::make_contact_model(
-      "linear_spring_dashpot", {{"stiffness", k_n}, {"restitution", 0.3}}, "coulomb_spring",
-      {{"stiffness", 2.0 / 7.0 * k_n}, {"friction", 0.3}, {"damping_factor", 0.3}});
+      "linear_spring_dashpot", {{"stiffness", k_n}, {"restitution", 0.1}}, "coulomb_spring",
+      {{"stiffness", 2.0 / 7.0 * k_n}, {"friction", 0.3}, {"damping_factor", 0.5}});
   dem::ContactForceField field(model, domain, settings);
 
   gw::ParticleStore s;
@@ -57,18 +59,17 @@ TEST(SettledBed, PackingFractionOfPouredMonodisperseSpheres) {
   dem::VelocityVerlet integrator;
   const auto start = std::chrono::steady_clock::now();
   long step = 0;
-  double max_speed = 1.0;
-  for (; step * dt < 60.0; ++step) {
+  // At rest: mean kinetic energy per particle below 1e-5 m g d. (A single sphere may keep
+  // rolling on the floor under the bed: there is no rolling resistance, so the maximum speed
+  // is not a useful criterion.)
+  double kinetic_per_particle = 1.0;
+  for (; step * dt < 120.0; ++step) {
     integrator.step(s, field, dt);
-    if (step % 500 == 0 && step * dt > 10.0) {
-      max_speed = 0.0;
-      for (const Vec3& v : s.velocity) max_speed = std::max(max_speed, v.norm());
-      if (std::getenv("DEM_DEBUG")) {
-        double ke = 0; std::size_t arg = 0;
-        for (std::size_t i = 0; i < s.size(); ++i) { ke += 0.5 * s.velocity[i].squaredNorm(); if (s.velocity[i].norm() >= max_speed) arg = i; }
-        std::printf("t=%.1f ke=%.3e max=%.3e at y=%.2f contacts=%zu\n", step*dt, ke, max_speed, s.position[arg].y(), field.contacts().size());
-      }
-      if (max_speed < 1e-3) break;
+    if (step % 200 == 0 && step * dt > 5.0) {
+      double kinetic = 0.0;
+      for (const Vec3& v : s.velocity) kinetic += 0.5 * mass * v.squaredNorm();
+      kinetic_per_particle = kinetic / static_cast<double>(s.size());
+      if (kinetic_per_particle < 1e-5) break;
     }
   }
   const double seconds =
@@ -81,9 +82,10 @@ TEST(SettledBed, PackingFractionOfPouredMonodisperseSpheres) {
   for (const Vec3& x : s.position) solid += sphere_volume_in_slab(x.y(), radius, a, b);
   const double phi = solid / (length * length * (b - a));
   std::printf("settled bed: %zu particles, t = %.1f, %ld steps in %.1f s (%.2e particle-steps/s), "
-              "max speed %.1e, bed height %.2f, phi = %.4f\n",
-              s.size(), step * dt, step, seconds, s.size() * step / seconds, max_speed, top, phi);
-  EXPECT_LT(max_speed, 1e-3) << "the bed did not come to rest";
+              "kinetic energy per particle %.1e, bed height %.2f, phi = %.4f\n",
+              s.size(), step * dt, step, seconds, s.size() * step / seconds, kinetic_per_particle,
+              top, phi);
+  EXPECT_LT(kinetic_per_particle, 1e-5) << "the bed did not come to rest";
   EXPECT_GT(phi, 0.58);
   EXPECT_LT(phi, 0.64);
 }
