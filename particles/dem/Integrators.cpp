@@ -15,18 +15,6 @@ double stable_time_step(const ParticleStore& store, const NormalLaw& law, int st
   return tau / steps_per_collision;
 }
 
-namespace {
-void kick(ParticleStore& store, const ContactForceField& field, double half_dt) {
-  const auto& f = field.force();
-  const auto& t = field.torque();
-  for (std::size_t i = 0; i < store.size(); ++i) {
-    const double inv_m = store.inverse_mass(i);
-    if (inv_m == 0.0) continue;
-    store.velocity[i] += (half_dt * inv_m) * f[i];
-    store.angular_velocity[i] += (half_dt / store.inertia[i]) * t[i];
-  }
-}
-}  // namespace
 
 void VelocityVerlet::step(ParticleStore& store, ContactForceField& field, double dt) {
   if (!have_forces_ || field.force().size() != store.size()) {
@@ -37,17 +25,23 @@ void VelocityVerlet::step(ParticleStore& store, ContactForceField& field, double
   // Kick and drift, then a second kick with the old forces: the velocities seen by the force
   // evaluation are the prediction v_n + Δt a_n of v_{n+1} rather than the half-step velocity,
   // so velocity-dependent forces (dashpots, drag) are second-order accurate; the final kick
-  // swaps the old half of the acceleration for the new one.
-  old_force_.assign(field.force().begin(), field.force().end());
-  old_torque_.assign(field.torque().begin(), field.torque().end());
-  kick(store, field, 0.5 * dt);
+  // swaps the old half of the acceleration for the new one. One fused loop.
+  const std::size_t n = store.size();
+  old_force_.resize(n);
+  old_torque_.resize(n);
   const Domain& domain = field.domain();
-  for (std::size_t i = 0; i < store.size(); ++i) {
-    if (store.is_fixed(i)) continue;
-    store.position[i] += dt * store.velocity[i];
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3 f = field.force()[i], t = field.torque()[i];
+    old_force_[i] = f;
+    old_torque_[i] = t;
+    const double inv_m = store.inverse_mass(i);
+    if (inv_m == 0.0) continue;
+    const Vec3 half_kick = (0.5 * dt * inv_m) * f;
+    store.position[i] += dt * (store.velocity[i] + half_kick);
     domain.wrap(store.position[i]);
+    store.velocity[i] += 2.0 * half_kick;
+    store.angular_velocity[i] += (dt / store.inertia[i]) * t;
   }
-  kick(store, field, 0.5 * dt);
   field.evaluate(store, HistoryStage::kSingle, dt);
   const auto& f = field.force();
   const auto& t = field.torque();

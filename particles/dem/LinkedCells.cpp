@@ -128,7 +128,15 @@ void LinkedCells::build(const ParticleStore& store, const Domain& domain, double
   for (std::size_t i = 0; i < n; ++i) sorted_[cell_start_[cell_of_[i]]++] = static_cast<std::uint32_t>(i);
   for (std::size_t c = cell_start_.size() - 1; c > 0; --c) cell_start_[c] = cell_start_[c - 1];
   cell_start_[0] = 0;
-  for (std::size_t a = 0; a < n; ++a) packed_[a] = {store.position[sorted_[a]], store.radius[sorted_[a]]};
+  // The packed copy is wrapped into the box on periodic axes: the per-cell shifts assume each
+  // position lies in the cell it was sorted into (RK2 evaluates unwrapped predicted positions).
+  for (std::size_t a = 0; a < n; ++a) {
+    Vec3 x = store.position[sorted_[a]];
+    for (int k = 0; k < domain.dimension; ++k)
+      if (wraps_[static_cast<std::size_t>(k)])
+        x[k] -= period_[k] * std::floor((x[k] - lo_[k]) / period_[k]);
+    packed_[a] = {x, store.radius[sorted_[a]]};
+  }
 }
 
 }  // namespace grainwave::particles::dem

@@ -24,9 +24,11 @@ std::set<std::pair<int, int>> brute_force(const gw::ParticleStore& s, const gw::
   return pairs;
 }
 
-void check(const gw::Domain& domain, int n, double r_max, unsigned seed) {
+/// `outside` > 0 scatters centres up to that fraction of the box beyond its faces (as RK2's
+/// unwrapped predicted positions are).
+void check(const gw::Domain& domain, int n, double r_max, unsigned seed, double outside = 0.0) {
   std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::uniform_real_distribution<double> u(-outside, 1.0 + outside);
   gw::ParticleStore s;
   double largest = 0.0;
   for (int k = 0; k < n; ++k) {
@@ -60,6 +62,12 @@ TEST(LinkedCells, MatchesBruteForcePeriodic3D) {
   gw::Domain d;
   d.hi = Vec3(2.0, 1.5, 1.0);
   check(d, 600, 0.06, 1);
+}
+
+TEST(LinkedCells, MatchesBruteForcePeriodicWithCentresOutsideTheBox) {
+  gw::Domain d;
+  d.hi = Vec3(2.0, 1.5, 1.0);
+  check(d, 600, 0.06, 5, 0.03);
 }
 
 TEST(LinkedCells, MatchesBruteForceWalls3D) {
