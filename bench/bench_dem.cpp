@@ -1,7 +1,8 @@
 // DEM throughput: particle-steps per second of a dense, sheared granular bed (>= 20 000
 // spheres, ~6 contacts each) in a periodic box over a floor, with gravity tilted 25° so it flows.
 // One benchmark per tangential law: static friction (no history) and the Coulomb spring with
-// id-keyed history. Targets on one core: 1.5e7 and 1e7 particle-steps/s.
+// id-keyed history, each with the cell search at every step and with a Verlet list.
+// Targets on one core: 1.5e7 and 1e7 particle-steps/s.
 #include "particles/dem/ContactForceField.hpp"
 #include "particles/dem/Integrators.hpp"
 
@@ -44,11 +45,13 @@ Bed make_bed() {
   return bed;
 }
 
-void run_bed(benchmark::State& state, const std::string& tangential, const dem::LawParameters& tp) {
+void run_bed(benchmark::State& state, const std::string& tangential, const dem::LawParameters& tp,
+             double verlet_skin = 0.0) {
   Bed bed = make_bed();
   dem::ContactForceSettings settings;
   const double tilt = 25.0 * std::numbers::pi / 180.0;
   settings.gravity = Vec3(std::sin(tilt), -std::cos(tilt), 0.0);
+  settings.verlet_skin = verlet_skin;
   auto model = dem::make_contact_model("linear_spring_dashpot",
                                        {{"stiffness", 2.0e4}, {"restitution", 0.7}}, tangential, tp);
   dem::ContactForceField field(model, bed.domain, settings);
@@ -63,13 +66,22 @@ void run_bed(benchmark::State& state, const std::string& tangential, const dem::
       benchmark::Counter(n * static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
   const double history_bytes =
       static_cast<double>(field.history().capacity() * dem::ContactHistory::bytes_per_entry()) / n;
-  const double scratch_bytes =
+  // Scratch held by the force field and integrator: contact list, force/torque, Verlet's old
+  // forces, inverse masses, cell sort (slot, cell, packed position+radius); with a Verlet list
+  // also its pairs, reference positions and ids.
+  double scratch_bytes =
       static_cast<double>(field.contacts().capacity() * sizeof(dem::Contact)) / n +
-      2 * sizeof(Vec3) /* force, torque */ + 2 * sizeof(Vec3) /* Verlet old forces */ +
-      2 * sizeof(std::uint32_t) /* cells */;
+      4 * sizeof(Vec3) + sizeof(double) + 2 * sizeof(std::uint32_t) + 4 * sizeof(double);
+  if (verlet_skin > 0.0)
+    scratch_bytes += static_cast<double>(field.verlet_list().pair_count() * 2 * sizeof(std::uint32_t)) / n +
+                     sizeof(Vec3) + sizeof(std::int64_t);
   state.counters["bytes_per_particle"] =
       static_cast<double>(gw::ParticleStore::bytes_per_particle()) + history_bytes + scratch_bytes;
   state.counters["history_bytes_per_particle"] = history_bytes;
+  if (verlet_skin > 0.0) {
+    state.counters["list_builds"] = static_cast<double>(field.verlet_list().builds());
+    state.counters["steps"] = static_cast<double>(state.iterations() + 50);
+  }
 }
 
 void BM_DenseBedStaticFriction(benchmark::State& state) {
@@ -79,8 +91,18 @@ void BM_DenseBedCoulombSpringHistory(benchmark::State& state) {
   run_bed(state, "coulomb_spring", {{"stiffness", 5.7e3}, {"friction", 0.5}});
 }
 
+// Same beds with a Verlet list of skin 0.1 d (rebuilt when a particle has moved 0.05 d).
+void BM_DenseBedStaticFrictionVerlet(benchmark::State& state) {
+  run_bed(state, "static_friction", {{"friction", 0.5}}, 0.1);
+}
+void BM_DenseBedCoulombSpringHistoryVerlet(benchmark::State& state) {
+  run_bed(state, "coulomb_spring", {{"stiffness", 5.7e3}, {"friction", 0.5}}, 0.1);
+}
+
 }  // namespace
 
 BENCHMARK(BM_DenseBedStaticFriction)->Unit(benchmark::kMillisecond)->MinTime(3.0);
 BENCHMARK(BM_DenseBedCoulombSpringHistory)->Unit(benchmark::kMillisecond)->MinTime(3.0);
+BENCHMARK(BM_DenseBedStaticFrictionVerlet)->Unit(benchmark::kMillisecond)->MinTime(3.0);
+BENCHMARK(BM_DenseBedCoulombSpringHistoryVerlet)->Unit(benchmark::kMillisecond)->MinTime(3.0);
 BENCHMARK_MAIN();

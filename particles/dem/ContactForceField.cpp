@@ -16,10 +16,11 @@ ContactForceField::ContactForceField(ContactModel model, const Domain& domain,
 }
 
 void ContactForceField::collect_particle_contacts(const ParticleStore& store) {
-  cells_.for_each_touching_pair(
-      [&](std::uint32_t i, std::uint32_t j, const Vec3& d, double distance2) {
-        add_particle_contact(store, i, j, d, distance2);
-      });
+  auto add = [&](std::uint32_t i, std::uint32_t j, const Vec3& d, double distance2) {
+    add_particle_contact(store, i, j, d, distance2);
+  };
+  if (settings_.verlet_skin > 0.0) verlet_.for_each_touching_pair(store, add);
+  else cells_.for_each_touching_pair(add);
 }
 
 void ContactForceField::add_particle_contact(const ParticleStore& store, std::uint32_t i,
@@ -32,7 +33,7 @@ void ContactForceField::add_particle_contact(const ParticleStore& store, std::ui
   c.i = i;
   c.partner = j;
   c.is_wall = false;
-  c.normal = d / distance;
+  c.normal = d * (1.0 / distance);
   c.overlap = ri + rj - distance;
   const Vec3 spin = ri * store.angular_velocity[i] + rj * store.angular_velocity[j];
   c.relative_velocity = (store.velocity[j] - store.velocity[i]) - spin.cross(c.normal);
@@ -90,17 +91,22 @@ void ContactForceField::evaluate(const ParticleStore& store, HistoryStage stage,
   const std::size_t n = store.size();
   if (stage != HistoryStage::kCorrect) history_.begin_step();
 
-  double cell_width = settings_.cell_width;
-  if (cell_width <= 0.0) {
-    double largest = 0.0;
-    for (double r : store.radius) largest = std::max(largest, r);
-    cell_width = 2.0 * largest;
-  }
   contacts_.clear();
   inverse_mass_.resize(n);
   for (std::size_t i = 0; i < n; ++i) inverse_mass_[i] = store.inverse_mass(i);
   if (n > 0) {
-    cells_.build(store, domain_, cell_width);
+    const double skin = std::max(settings_.verlet_skin, 0.0);
+    const bool search_cells = skin == 0.0 || verlet_.stale(store, domain_);
+    if (search_cells) {
+      double cell_width = settings_.cell_width;
+      if (cell_width <= 0.0) {
+        double largest = 0.0;
+        for (double r : store.radius) largest = std::max(largest, r);
+        cell_width = 2.0 * largest + skin;
+      }
+      if (skin > 0.0) verlet_.build(store, domain_, cell_width, skin);
+      else cells_.build(store, domain_, cell_width);
+    }
     collect_particle_contacts(store);
     collect_wall_contacts(store);
   }

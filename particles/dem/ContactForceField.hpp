@@ -12,6 +12,7 @@
 #include "particles/dem/ContactHistory.hpp"
 #include "particles/dem/ContactLaw.hpp"
 #include "particles/dem/LinkedCells.hpp"
+#include "particles/dem/VerletList.hpp"
 #include "particles/dem/Walls.hpp"
 
 #include <vector>
@@ -42,8 +43,11 @@ inline Vec3 recycling_drag(double coefficient_per_mass, double mass, const Vec3&
 struct ContactForceSettings {
   Vec3 gravity = Vec3::Zero();
   std::vector<RecyclingDragZone> drag_zones;
-  /// Linked-cell width; 0 means the largest particle diameter at each evaluation.
+  /// Linked-cell width; 0 means the largest particle diameter (plus the skin) at each build.
   double cell_width = 0.0;
+  /// Verlet-list skin: 0 searches the cells at every evaluation; > 0 keeps the pairs closer
+  /// than r_i + r_j + skin and searches again only after a particle moved skin/2.
+  double verlet_skin = 0.0;
 };
 
 class ContactForceField {
@@ -65,6 +69,7 @@ class ContactForceField {
   /// Contacts found by the last evaluation (particle pairs and wall contacts).
   const std::vector<Contact>& contacts() const { return contacts_; }
   const ContactHistory& history() const { return history_; }
+  const VerletList& verlet_list() const { return verlet_; }
 
  private:
   void collect_particle_contacts(const ParticleStore& store);
@@ -81,6 +86,7 @@ class ContactForceField {
   std::vector<PlaneWall> plane_walls_;
   std::vector<FiniteWall> finite_walls_;
   LinkedCells cells_;
+  VerletList verlet_;
   ContactHistory history_;
   std::vector<Contact> contacts_;
   std::vector<double> inverse_mass_;  ///< per slot, 0 for fixed particles

@@ -27,6 +27,12 @@ class LinkedCells {
   /// d = x_j − x_i the minimum-image separation. Only the packed copy is read in the search.
   template <class PairFunction>
   void for_each_touching_pair(PairFunction&& f) const {
+    for_each_pair_within(0.0, f);
+  }
+
+  /// Same for pairs closer than r_i + r_j + margin (the margin must fit in the cell width).
+  template <class PairFunction>
+  void for_each_pair_within(double margin, PairFunction&& f) const {
     const std::size_t n_cells = cell_start_.size() - 1;
     std::uint32_t neighbours[26];
     Vec3 shifts[26];
@@ -34,14 +40,14 @@ class LinkedCells {
       const std::uint32_t begin = cell_start_[c], end = cell_start_[c + 1];
       if (begin == end) continue;
       for (std::uint32_t a = begin; a < end; ++a)
-        for (std::uint32_t b = a + 1; b < end; ++b) test_pair(a, b, Vec3::Zero(), f);
+        for (std::uint32_t b = a + 1; b < end; ++b) test_pair(a, b, Vec3::Zero(), margin, f);
       const int count = interior_[c] ? interior_neighbours(c, neighbours, shifts)
                                      : upper_neighbours(c, neighbours, shifts);
       for (int s = 0; s < count; ++s) {
         const std::uint32_t d = neighbours[s];
         const std::uint32_t d_begin = cell_start_[d], d_end = cell_start_[d + 1];
         for (std::uint32_t a = begin; a < end; ++a)
-          for (std::uint32_t b = d_begin; b < d_end; ++b) test_pair(a, b, shifts[s], f);
+          for (std::uint32_t b = d_begin; b < d_end; ++b) test_pair(a, b, shifts[s], margin, f);
       }
     }
   }
@@ -56,12 +62,13 @@ class LinkedCells {
   };
 
   template <class PairFunction>
-  void test_pair(std::uint32_t a, std::uint32_t b, const Vec3& shift, PairFunction& f) const {
+  void test_pair(std::uint32_t a, std::uint32_t b, const Vec3& shift, double margin,
+                 PairFunction& f) const {
     const PackedParticle& p = packed_[a];
     const PackedParticle& q = packed_[b];
     Vec3 d = q.x + shift - p.x;
     if (short_periodic_axis_) minimum_image(d);
-    const double reach = p.r + q.r;
+    const double reach = p.r + q.r + margin;
     const double distance2 = d.squaredNorm();
     if (distance2 < reach * reach) f(sorted_[a], sorted_[b], d, distance2);
   }
