@@ -15,13 +15,15 @@ std::size_t ContactHistory::home(std::int64_t a, std::int64_t /*b*/) const {
 }
 
 void ContactHistory::prepare() {
-  if (slots_.empty() || 2 * occupied_ > slots_.size()) make_room();
+  // Purge at a load of 0.7; a purge leaves live entries at most half the table, so with a few
+  // per cent of contacts renewed per step purges come every few tens of steps.
+  if (slots_.empty() || 10 * occupied_ > 7 * slots_.size()) make_room();
 }
 
 void ContactHistory::make_room() {
   const std::size_t live = live_count();
   std::size_t capacity = std::max<std::size_t>(slots_.size(), 64);
-  while (8 * (live + 1) > 3 * capacity) capacity *= 2;
+  while (2 * (live + 1) > capacity) capacity *= 2;
   rehash(capacity);
 }
 

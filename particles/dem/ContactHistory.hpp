@@ -6,8 +6,8 @@
 //
 // Open addressing with linear probing in a flat array. An entry belongs to the step in which it
 // was last touched: a contact absent for a whole step is stale and restarts from zero when the
-// pair touches again. Stale entries stay in place until a purge (prepare() when the table is
-// half full, or make_room() when touch() is about to fill it); a purge moves entries, so a
+// pair touches again. Stale entries stay in place until a purge (prepare() at a load of 0.7,
+// or make_room() when touch() is about to fill it); a purge moves entries, so a
 // caller holding entry pointers must look them up again after make_room(). After the table has
 // reached its working size nothing is allocated.
 #include "particles/ParticleStore.hpp"
@@ -35,11 +35,11 @@ class ContactHistory {
 
   /// Advances the step counter: contacts not touched during the previous step become stale.
   void begin_step() { ++step_; }
-  /// Called once per force evaluation before the lookups: purges when the table is half full.
+  /// Called once per force evaluation before the lookups: purges above a load of 0.7.
   void prepare();
-  /// True when the next touch() could push the load above 3/4: call make_room() first.
-  bool nearly_full() const { return 4 * (occupied_ + 1) > 3 * slots_.size(); }
-  /// Purges stale entries and doubles the capacity if live entries would fill over 3/8.
+  /// True when the next touch() could push the load above 0.85: call make_room() first.
+  bool nearly_full() const { return 20 * (occupied_ + 1) > 17 * slots_.size(); }
+  /// Purges stale entries and doubles the capacity until live entries fill at most half.
   void make_room();
   /// Entry of the pair (a, b), order-independent; a fresh zeroed entry when the pair was not in
   /// contact during the current or previous step. Requires !nearly_full().

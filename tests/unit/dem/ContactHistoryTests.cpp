@@ -46,7 +46,7 @@ TEST(ContactHistory, GrowsAndPurgesWithoutLosingLiveEntries) {
     }
   }
   EXPECT_EQ(h.live_count(), 1500u);  // this step's 1000 plus last step's 500 transient ones
-  EXPECT_LE(h.capacity(), 8192u);  // 1500 live entries at a load of at most 3/8 after purges
+  EXPECT_LE(h.capacity(), 4096u);  // 1500 live entries fill at most half after a purge
 }
 
 TEST(ContactHistory, SurvivesSwappingSlots) {
