@@ -42,9 +42,8 @@ void ContactForceField::add_particle_contact(const ParticleStore& store, std::ui
 }
 
 void ContactForceField::add_wall_contact(const ParticleStore& store, std::size_t i,
-                                         std::size_t wall_index, const Vec3& /*wall_point*/,
-                                         const Vec3& wall_velocity, const Vec3& normal,
-                                         double overlap) {
+                                         std::size_t wall_index, const Vec3& wall_velocity,
+                                         const Vec3& normal, double overlap) {
   Contact& c = contacts_.emplace_back();
   c.i = static_cast<std::uint32_t>(i);
   c.partner = static_cast<std::uint32_t>(wall_index);
@@ -66,8 +65,7 @@ void ContactForceField::collect_wall_contacts(const ParticleStore& store) {
       if (store.is_fixed(i)) continue;
       const double overlap = store.radius[i] - wall.distance(store.position[i]);
       if (overlap <= 0.0) continue;
-      add_wall_contact(store, i, w, wall.closest_point(store.position[i]), wall.velocity,
-                       -wall.normal, overlap);
+      add_wall_contact(store, i, w, wall.velocity, -wall.normal, overlap);
     }
   }
   for (std::size_t w = 0; w < finite_walls_.size(); ++w) {
@@ -81,7 +79,7 @@ void ContactForceField::collect_wall_contacts(const ParticleStore& store) {
       const double r = store.radius[i];
       if (distance2 >= r * r || distance2 == 0.0) continue;
       const double distance = std::sqrt(distance2);
-      add_wall_contact(store, i, plane_walls_.size() + w, p, wall.velocity, d / distance,
+      add_wall_contact(store, i, plane_walls_.size() + w, wall.velocity, d / distance,
                        r - distance);
     }
   }

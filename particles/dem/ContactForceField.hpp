@@ -77,8 +77,7 @@ class ContactForceField {
                             const Vec3& d, double distance2);
   void collect_wall_contacts(const ParticleStore& store);
   void add_wall_contact(const ParticleStore& store, std::size_t i, std::size_t wall_index,
-                        const Vec3& wall_point, const Vec3& wall_velocity, const Vec3& normal,
-                        double overlap);
+                        const Vec3& wall_velocity, const Vec3& normal, double overlap);
 
   ContactModel model_;
   Domain domain_;

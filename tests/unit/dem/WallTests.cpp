@@ -115,3 +115,35 @@ TEST(Walls, SphereOnRoughLayerIsHeldByThreeFixedParticles) {
   EXPECT_NEAR(f.x(), 0.0, 1e-9 * f.y());
   EXPECT_NEAR(f.z(), 0.0, 1e-9 * f.y());
 }
+
+TEST(Walls, SphereDroppedOnRoughLayerSettlesInAHollow) {
+  const double r = 0.05, m = 1.0, g = 9.81, k = 1e6;
+  gw::ParticleStore s;
+  dem::add_rough_wall_layer(s, 3, Vec3(-0.5, 0, -0.5), Vec3::UnitX(), Vec3::UnitZ(), 1.0, 1.0, r,
+                            1.0, 1000);
+  const Vec3 a = s.position[5], b = s.position[6];
+  const Vec3 c = a + Vec3(r, 0, std::sqrt(3.0) * r);
+  const Vec3 centroid = (a + b + c) / 3.0;
+  const double rest_height = std::sqrt(4 * r * r - (centroid - a).squaredNorm());
+  // Each of the three contacts carries m g / (3 cos θ) along its normal, cos θ = h / 2r; an
+  // overlap δ along the normal lowers the centre by δ / cos θ.
+  const double cos_theta = rest_height / (2 * r);
+  const double overlap = m * g / (3.0 * k * cos_theta);
+  const double expected_y = centroid.y() + rest_height - overlap / cos_theta;
+  dem::ContactForceSettings settings;
+  settings.gravity = Vec3(0, -g, 0);
+  auto model = dem::make_contact_model("linear_spring_dashpot", {{"stiffness", k}, {"restitution", 0.3}},
+                                       "static_friction", {{"friction", 0.0}});
+  dem::ContactForceField field(model, open_domain(3), settings);
+  s.add(1, centroid + Vec3(0, rest_height + 0.2 * r, 0), Vec3::Zero(), Vec3::Zero(), r, m,
+        gw::solid_inertia(3, m, r));
+  const double dt = dem::stable_time_step(s, *model.normal, 50);
+  dem::VelocityVerlet integrator;
+  for (int step = 0; step < 20000; ++step) integrator.step(s, field, dt);
+  const Vec3 x = s.position.back();
+  EXPECT_NEAR(x.y(), expected_y, 1e-3 * overlap + 1e-12);
+  EXPECT_NEAR(x.x(), centroid.x(), 1e-9);
+  EXPECT_NEAR(x.z(), centroid.z(), 1e-9);
+  EXPECT_EQ(field.contacts().size(), 3u);
+  for (std::size_t i = 0; i + 1 < s.size(); ++i) EXPECT_EQ(s.velocity[i], Vec3::Zero());
+}
