@@ -147,3 +147,32 @@ TEST(Walls, SphereDroppedOnRoughLayerSettlesInAHollow) {
   EXPECT_EQ(field.contacts().size(), 3u);
   for (std::size_t i = 0; i + 1 < s.size(); ++i) EXPECT_EQ(s.velocity[i], Vec3::Zero());
 }
+
+TEST(Walls, MovingFloorDragsSphereToRolling) {
+  // A conveyor floor at speed U under a sphere at rest: in the floor's frame the sphere slides at
+  // −U and ends rolling at −5U/7, so in the lab it ends at 2U/7 (the wall velocity enters v_ji).
+  const double r = 1e-3, m = 1.09e-5, g = 9.81, U = 0.05, mu = 0.3;
+  dem::ContactForceSettings settings;
+  settings.gravity = Vec3(0, -g, 0);
+  auto model = dem::make_contact_model(
+      "linear_spring_dashpot", {{"stiffness", 1e3}, {"restitution", 0.5}}, "coulomb_spring",
+      {{"stiffness", 2e3 / 7.0}, {"friction", mu}, {"damping_factor", 0.5}});
+  dem::ContactForceField field(model, open_domain(3), settings);
+  dem::PlaneWall floor;
+  floor.point = Vec3(0, -0.5, 0);
+  floor.normal = Vec3(0, 1, 0);
+  field.plane_walls().push_back(floor);
+  gw::ParticleStore s;
+  s.add(0, Vec3(0, -0.5 + r - m * g / 1e3, 0), Vec3::Zero(), Vec3::Zero(), r, m,
+        gw::solid_inertia(3, m, r));
+  const double dt = dem::stable_time_step(s, *model.normal, 50);
+  dem::VelocityVerlet integrator;
+  for (int step = 0; step < 2000; ++step) integrator.step(s, field, dt);  // settle
+  field.plane_walls()[0].velocity = Vec3(U, 0, 0);
+  const double t_roll = 2.0 * U / (7.0 * mu * g);
+  const long steps = static_cast<long>(3.0 * t_roll / dt);
+  for (long step = 0; step < steps; ++step) integrator.step(s, field, dt);
+  EXPECT_NEAR(s.velocity[0].x(), 2.0 / 7.0 * U, 5e-3 * 2.0 / 7.0 * U);
+  // Rolling on the belt: the contact point moves with it, v + ω × (−R ŷ) = U.
+  EXPECT_NEAR(s.velocity[0].x() + r * s.angular_velocity[0].z(), U, 1e-3 * U);
+}
