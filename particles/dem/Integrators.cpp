@@ -15,7 +15,6 @@ double stable_time_step(const ParticleStore& store, const NormalLaw& law, int st
   return tau / steps_per_collision;
 }
 
-
 void VelocityVerlet::step(ParticleStore& store, ContactForceField& field, double dt) {
   if (!have_forces_ || field.force().size() != store.size()) {
     // Forces at t_n without advancing the tangential history (no time has passed yet).
