@@ -1,0 +1,149 @@
+#include "particles/dem/ContactForceField.hpp"
+
+#include "core/Error.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace grainwave::particles::dem {
+
+ContactForceField::ContactForceField(ContactModel model, const Domain& domain,
+                                     ContactForceSettings settings)
+    : model_(std::move(model)), domain_(domain), settings_(std::move(settings)) {
+  if (!model_.normal || !model_.tangential)
+    throw InputError({"contact model", 0}, "law", "needs both a normal and a tangential law");
+  plane_walls_ = walls_from_domain(domain_);
+}
+
+void ContactForceField::collect_particle_contacts(const ParticleStore& store) {
+  auto add = [&](std::uint32_t i, std::uint32_t j, const Vec3& d, double distance2) {
+    add_particle_contact(store, i, j, d, distance2);
+  };
+  if (settings_.verlet_skin > 0.0) verlet_.for_each_touching_pair(store, add);
+  else cells_.for_each_touching_pair(add);
+}
+
+void ContactForceField::add_particle_contact(const ParticleStore& store, std::uint32_t i,
+                                             std::uint32_t j, const Vec3& d, double distance2) {
+  const double inverse_mass_sum = inverse_mass_[i] + inverse_mass_[j];
+  if (inverse_mass_sum == 0.0 || distance2 == 0.0) return;  // fixed pairs never interact
+  const double distance = std::sqrt(distance2);
+  const double ri = store.radius[i], rj = store.radius[j];
+  Contact& c = contacts_.emplace_back();
+  c.i = i;
+  c.partner = j;
+  c.is_wall = false;
+  c.normal = d * (1.0 / distance);
+  c.overlap = ri + rj - distance;
+  const Vec3 spin = ri * store.angular_velocity[i] + rj * store.angular_velocity[j];
+  c.relative_velocity = (store.velocity[j] - store.velocity[i]) - spin.cross(c.normal);
+  c.effective_mass = 1.0 / inverse_mass_sum;
+  c.effective_radius = effective_radius(ri, rj);
+}
+
+void ContactForceField::add_wall_contact(const ParticleStore& store, std::size_t i,
+                                         std::size_t wall_index, const Vec3& wall_velocity,
+                                         const Vec3& normal, double overlap) {
+  Contact& c = contacts_.emplace_back();
+  c.i = static_cast<std::uint32_t>(i);
+  c.partner = static_cast<std::uint32_t>(wall_index);
+  c.is_wall = true;
+  c.normal = normal;
+  c.overlap = overlap;
+  c.relative_velocity = (wall_velocity - store.velocity[i]) -
+                        (store.radius[i] * store.angular_velocity[i]).cross(normal);
+  c.effective_mass = store.mass[i];
+  c.effective_radius = store.radius[i];
+}
+
+void ContactForceField::collect_wall_contacts(const ParticleStore& store) {
+  const std::size_t n = store.size();
+  for (std::size_t w = 0; w < plane_walls_.size(); ++w) {
+    const PlaneWall& wall = plane_walls_[w];
+    if (!wall.enabled) continue;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (store.is_fixed(i)) continue;
+      const double overlap = store.radius[i] - wall.distance(store.position[i]);
+      if (overlap <= 0.0) continue;
+      add_wall_contact(store, i, w, wall.velocity, -wall.normal, overlap);
+    }
+  }
+  for (std::size_t w = 0; w < finite_walls_.size(); ++w) {
+    const FiniteWall& wall = finite_walls_[w];
+    if (!wall.enabled) continue;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (store.is_fixed(i)) continue;
+      const Vec3 p = wall.closest_point(store.position[i]);
+      const Vec3 d = p - store.position[i];
+      const double distance2 = d.squaredNorm();
+      const double r = store.radius[i];
+      if (distance2 >= r * r || distance2 == 0.0) continue;
+      const double distance = std::sqrt(distance2);
+      add_wall_contact(store, i, plane_walls_.size() + w, wall.velocity, d / distance,
+                       r - distance);
+    }
+  }
+}
+
+void ContactForceField::evaluate(const ParticleStore& store, HistoryStage stage, double dt) {
+  const std::size_t n = store.size();
+  if (stage != HistoryStage::kCorrect) history_.begin_step();
+
+  contacts_.clear();
+  inverse_mass_.resize(n);
+  for (std::size_t i = 0; i < n; ++i) inverse_mass_[i] = store.inverse_mass(i);
+  if (n > 0) {
+    const double skin = std::max(settings_.verlet_skin, 0.0);
+    const bool search_cells = skin == 0.0 || verlet_.stale(store, domain_);
+    if (search_cells) {
+      double cell_width = settings_.cell_width;
+      if (cell_width <= 0.0) {
+        double largest = 0.0;
+        for (double r : store.radius) largest = std::max(largest, r);
+        cell_width = 2.0 * largest + skin;
+      }
+      if (skin > 0.0) verlet_.build(store, domain_, cell_width, skin);
+      else cells_.build(store, domain_, cell_width);
+    }
+    collect_particle_contacts(store);
+    collect_wall_contacts(store);
+  }
+
+  if (model_.tangential->needs_history()) {
+    history_.prepare();
+    for (std::size_t k = 0; k < contacts_.size(); ++k) {
+      if (history_.nearly_full()) {
+        history_.make_room();  // entries moved: look up the contacts done so far again
+        k = 0;
+      }
+      Contact& c = contacts_[k];
+      const std::int64_t other = c.is_wall ? ContactHistory::wall_key(c.partner)
+                                           : store.id[c.partner];
+      c.history = history_.touch(store.id[c.i], other);
+    }
+  }
+  model_.normal->evaluate(contacts_);
+  model_.tangential->evaluate(contacts_, stage, dt);
+
+  force_.resize(n);
+  torque_.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    force_[i] = store.force[i] + store.mass[i] * settings_.gravity;
+    torque_[i] = store.torque[i];
+    for (const RecyclingDragZone& zone : settings_.drag_zones)
+      if (zone.contains(store.position[i]))
+        force_[i] += recycling_drag(zone.coefficient_per_mass, store.mass[i], store.velocity[i]);
+  }
+  for (const Contact& c : contacts_) {
+    const Vec3 on_i = c.tangential_force - c.normal_force * c.normal;
+    const Vec3 lever_cross_ft = c.normal.cross(c.tangential_force);
+    force_[c.i] += on_i;
+    torque_[c.i] += store.radius[c.i] * lever_cross_ft;
+    if (!c.is_wall) {
+      force_[c.partner] -= on_i;
+      torque_[c.partner] += store.radius[c.partner] * lever_cross_ft;
+    }
+  }
+}
+
+}  // namespace grainwave::particles::dem

@@ -1,0 +1,96 @@
+#pragma once
+// Total force and torque on every particle for one DEM force evaluation (002 Eqs 3.3 and 3.4):
+//   F_i = Σ_j (−f_n n + F_t) + F_ext,i + m_i g + F_drag,i,    T_i = Σ_j R_i n × F_t + T_ext,i,
+// where j runs over touching particles (found by LinkedCells) and walls (closest point, R_j = 0,
+// m_j = ∞), f_n and F_t come from the ContactModel, and F_drag is the periodic-recycling drag of
+// Eq. 3.18, F = −c |v| v inside a zone, with c = m |g| / v_term² so that a particle falling
+// under gravity alone settles at the terminal speed v_term.
+// This class owns the loops and scratch memory; the laws own the pointwise physics. Nothing is
+// allocated per evaluation once the contact list has reached its working size.
+#include "particles/Domain.hpp"
+#include "particles/ParticleStore.hpp"
+#include "particles/dem/ContactHistory.hpp"
+#include "particles/dem/ContactLaw.hpp"
+#include "particles/dem/LinkedCells.hpp"
+#include "particles/dem/VerletList.hpp"
+#include "particles/dem/Walls.hpp"
+
+#include <vector>
+
+namespace grainwave::particles::dem {
+
+/// Axis-aligned box in which falling particles are slowed by F = −c |v| v (002 Eq. 3.18).
+struct RecyclingDragZone {
+  Vec3 lo = Vec3::Zero();
+  Vec3 hi = Vec3::Zero();
+  double coefficient_per_mass = 0.0;  ///< c / m = |g| / v_term²
+
+  static RecyclingDragZone from_terminal_velocity(const Vec3& lo, const Vec3& hi,
+                                                  double gravity_magnitude,
+                                                  double terminal_velocity) {
+    return {lo, hi, gravity_magnitude / (terminal_velocity * terminal_velocity)};
+  }
+  bool contains(const Vec3& x) const {
+    return (x.array() >= lo.array()).all() && (x.array() <= hi.array()).all();
+  }
+};
+
+/// Drag of Eq. 3.18 on a particle of mass m moving at v.
+inline Vec3 recycling_drag(double coefficient_per_mass, double mass, const Vec3& velocity) {
+  return -coefficient_per_mass * mass * velocity.norm() * velocity;
+}
+
+struct ContactForceSettings {
+  Vec3 gravity = Vec3::Zero();
+  std::vector<RecyclingDragZone> drag_zones;
+  /// Linked-cell width; 0 means the largest particle diameter (plus the skin) at each build.
+  double cell_width = 0.0;
+  /// Verlet-list skin: 0 searches the cells at every evaluation; > 0 keeps the pairs closer
+  /// than r_i + r_j + skin and searches again only after a particle moved skin/2.
+  double verlet_skin = 0.0;
+};
+
+class ContactForceField {
+ public:
+  ContactForceField(ContactModel model, const Domain& domain, ContactForceSettings settings = {});
+
+  std::vector<PlaneWall>& plane_walls() { return plane_walls_; }
+  std::vector<FiniteWall>& finite_walls() { return finite_walls_; }
+  const Domain& domain() const { return domain_; }
+  const ContactModel& model() const { return model_; }
+  ContactForceSettings& settings() { return settings_; }
+
+  /// Computes force() and torque() for the current state. kSingle and kPredict start a new
+  /// history step; kCorrect re-evaluates within the step begun by the preceding kPredict.
+  void evaluate(const ParticleStore& store, HistoryStage stage, double dt);
+
+  const std::vector<Vec3>& force() const { return force_; }
+  const std::vector<Vec3>& torque() const { return torque_; }
+  /// Contacts found by the last evaluation (particle pairs and wall contacts).
+  const std::vector<Contact>& contacts() const { return contacts_; }
+  const ContactHistory& history() const { return history_; }
+  const VerletList& verlet_list() const { return verlet_; }
+
+ private:
+  void collect_particle_contacts(const ParticleStore& store);
+  void add_particle_contact(const ParticleStore& store, std::uint32_t i, std::uint32_t j,
+                            const Vec3& d, double distance2);
+  void collect_wall_contacts(const ParticleStore& store);
+  void add_wall_contact(const ParticleStore& store, std::size_t i, std::size_t wall_index,
+                        const Vec3& wall_velocity, const Vec3& normal, double overlap);
+
+  ContactModel model_;
+  Domain domain_;
+  ContactForceSettings settings_;
+  std::vector<PlaneWall> plane_walls_;
+  std::vector<FiniteWall> finite_walls_;
+  LinkedCells cells_;
+  VerletList verlet_;
+  ContactHistory history_;
+  std::vector<Contact> contacts_;
+  std::vector<double> inverse_mass_;  ///< per slot, 0 for fixed particles
+  std::vector<Vec3> force_;
+  std::vector<Vec3> torque_;
+};
+
+}  // namespace grainwave::particles::dem

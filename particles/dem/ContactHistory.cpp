@@ -1,0 +1,85 @@
+#include "particles/dem/ContactHistory.hpp"
+
+#include <algorithm>
+#include <utility>
+
+namespace grainwave::particles::dem {
+
+std::size_t ContactHistory::home(std::int64_t a, std::int64_t /*b*/) const {
+  // All contacts of the particle with the smaller id a share a home and sit side by side, and
+  // consecutive ids get consecutive homes (4 slots each), so the lookups of a cell-ordered
+  // contact list walk the table nearly sequentially. The high bits are mixed in so that large,
+  // sparse ids (after MPI migration) still spread over the table. Capacity is a power of two.
+  const auto u = static_cast<std::uint64_t>(a);
+  return static_cast<std::size_t>(4 * u + (u >> 16) * 0x9E3779B97F4A7C15ull) & (slots_.size() - 1);
+}
+
+void ContactHistory::prepare() {
+  // Purge at a load of 0.7; a purge leaves live entries at most half the table, so with a few
+  // per cent of contacts renewed per step purges come every few tens of steps.
+  if (slots_.empty() || 10 * occupied_ > 7 * slots_.size()) make_room();
+}
+
+void ContactHistory::make_room() {
+  const std::size_t live = live_count();
+  std::size_t capacity = std::max<std::size_t>(slots_.size(), 64);
+  while (2 * (live + 1) > capacity) capacity *= 2;
+  rehash(capacity);
+}
+
+void ContactHistory::rehash(std::size_t new_capacity) {
+  spare_.assign(new_capacity, ContactHistoryEntry{});
+  std::swap(slots_, spare_);
+  occupied_ = 0;
+  for (const ContactHistoryEntry& e : spare_) {
+    if (e.last_step < 0 || !live(e)) continue;
+    std::size_t k = home(e.first, e.second);
+    while (slots_[k].last_step >= 0) k = (k + 1) & (slots_.size() - 1);
+    slots_[k] = e;
+    ++occupied_;
+  }
+}
+
+ContactHistoryEntry* ContactHistory::touch(std::int64_t a, std::int64_t b) {
+  if (a > b) std::swap(a, b);
+  std::size_t k = home(a, b);
+  while (true) {
+    ContactHistoryEntry& e = slots_[k];
+    if (e.last_step < 0) {
+      e = ContactHistoryEntry{a, b, step_, Vec3::Zero(), Vec3::Zero(), true};
+      ++occupied_;
+      return &e;
+    }
+    if (e.first == a && e.second == b) {
+      if (!live(e)) {
+        e.displacement.setZero();
+        e.stage_velocity.setZero();
+        e.is_new = true;
+      }
+      e.last_step = step_;
+      return &e;
+    }
+    k = (k + 1) & (slots_.size() - 1);
+  }
+}
+
+const ContactHistoryEntry* ContactHistory::find(std::int64_t a, std::int64_t b) const {
+  if (slots_.empty()) return nullptr;
+  if (a > b) std::swap(a, b);
+  std::size_t k = home(a, b);
+  while (slots_[k].last_step >= 0) {
+    const ContactHistoryEntry& e = slots_[k];
+    if (e.first == a && e.second == b) return live(e) ? &e : nullptr;
+    k = (k + 1) & (slots_.size() - 1);
+  }
+  return nullptr;
+}
+
+std::size_t ContactHistory::live_count() const {
+  return static_cast<std::size_t>(std::count_if(
+      slots_.begin(), slots_.end(), [this](const ContactHistoryEntry& e) {
+        return e.last_step >= 0 && live(e);
+      }));
+}
+
+}  // namespace grainwave::particles::dem

@@ -1,0 +1,42 @@
+#pragma once
+// Time integration of m dv/dt = F, I dω/dt = T (002 Eqs 3.1–3.2) for the DEM.
+//   VelocityVerlet   kick–drift–kick, one force evaluation per step, symplectic for
+//                    position-dependent forces: the method for long elastic runs. Forces are
+//                    evaluated with the predicted velocity v_n + Δt a_n so dashpots stay 2nd order.
+//   RungeKutta2      Heun's second-order Runge–Kutta of 002 §3.2.3: predictor at t_n, corrector
+//                    at the predicted state, trapezoidal average; two evaluations per step.
+// The step is Δt = τ/N with the contact duration τ of 002 Eq. 3.17 (or the Hertz equivalent)
+// for the stiffest, lightest pair and N >= 50 by default (stable_time_step). Fixed particles
+// (kFixed) never move. Positions are wrapped into the box on periodic axes after each step.
+#include "particles/ParticleStore.hpp"
+#include "particles/dem/ContactForceField.hpp"
+
+#include <vector>
+
+namespace grainwave::particles::dem {
+
+/// τ/N where τ is the shortest binary contact duration among the movable particles: each paired
+/// with an identical particle (m*/2, R*/2) and with a wall (m, R).
+double stable_time_step(const ParticleStore& store, const NormalLaw& law,
+                        int steps_per_collision = 50);
+
+class VelocityVerlet {
+ public:
+  void step(ParticleStore& store, ContactForceField& field, double dt);
+  /// Call after particles were added or removed: forces are recomputed before the next kick.
+  void reset() { have_forces_ = false; }
+
+ private:
+  bool have_forces_ = false;
+  std::vector<Vec3> old_force_, old_torque_;
+};
+
+class RungeKutta2 {
+ public:
+  void step(ParticleStore& store, ContactForceField& field, double dt);
+
+ private:
+  std::vector<Vec3> x0_, v0_, w0_, a0_, alpha0_;
+};
+
+}  // namespace grainwave::particles::dem
