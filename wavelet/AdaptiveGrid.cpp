@@ -269,19 +269,32 @@ struct PointResolver {
     return static_cast<GlobalIndex64>(config.roots[static_cast<std::size_t>(axis)]) * config.block_size << level;
   }
 
-  /// Leaf containing the level-`level` point `idx` (inside the domain).
+  /// Leaf containing the level-`level` point `idx` (inside the domain). Levels are tried
+  /// outwards from `level` (2:1 balance puts the answer within a level or two), and the last
+  /// hit is remembered: consecutive ghost points mostly fall into the same block.
   std::size_t leaf_containing(int level, const std::array<GlobalIndex64, Dim>& idx) const {
-    for (int l = 0; l <= config.max_level; ++l) {
+    for (int step = 0; step <= 2 * config.max_level + 1; ++step) {
+      const int l = level + ((step % 2 == 0) ? step / 2 : -(step + 1) / 2);
+      if (l < 0 || l > config.max_level) continue;
       std::array<std::uint32_t, Dim> c{};
       for (int a = 0; a < Dim; ++a) {
         const auto au = static_cast<std::size_t>(a);
         const GlobalIndex64 at = l >= level ? idx[au] << (l - level) : idx[au] >> (level - l);
         c[au] = static_cast<std::uint32_t>(at / config.block_size);
       }
-      if (const auto found = forest.find(BlockKey<Dim>::from_coords(l, c))) return *found;
+      if (l == last_level && c == last_coords) return last_leaf;
+      if (const auto found = forest.find(BlockKey<Dim>::from_coords(l, c))) {
+        last_level = l;
+        last_coords = c;
+        last_leaf = *found;
+        return *found;
+      }
     }
     throw std::logic_error("AdaptiveGrid: point not covered by the forest");
   }
+  mutable int last_level = -1;
+  mutable std::array<std::uint32_t, Dim> last_coords{};
+  mutable std::size_t last_leaf = 0;
 
   /// Appends the terms giving the value at (level, idx): a leaf's point, by injection from a
   /// finer leaf, or by Deslauriers-Dubuc prediction from level - 1.
