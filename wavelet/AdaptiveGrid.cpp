@@ -34,6 +34,7 @@ struct LineStencil {
 
 LineStencil dd_line(int order, GlobalIndex64 odd, GlobalIndex64 n, bool periodic) {
   GlobalIndex64 first = odd - (order - 1);
+  const GlobalIndex64 centred = first;
   if (!periodic) {
     const GlobalIndex64 last_even = (n - 1) - ((n - 1) % 2);
     first = std::clamp<GlobalIndex64>(first, 0, last_even - 2 * (order - 1));
@@ -45,6 +46,21 @@ LineStencil dd_line(int order, GlobalIndex64 odd, GlobalIndex64 n, bool periodic
     const auto mu = static_cast<std::size_t>(m);
     s.even[mu] = first + 2 * m;
     nodes[mu] = static_cast<double>(s.even[mu] - odd);
+  }
+  // Centred rows (all but a few near bounded edges) share one set of weights: compute it once.
+  static const auto centred_weights = [] {
+    std::array<std::array<double, kMaxPredictOrder>, kMaxPredictOrder + 1> w{};
+    for (int p = 2; p <= kMaxPredictOrder; p += 2) {
+      std::array<double, kMaxPredictOrder> x{};
+      for (int m = 0; m < p; ++m) x[static_cast<std::size_t>(m)] = 2.0 * m - (p - 1);
+      lagrange_weights(std::span<const double>(x.data(), static_cast<std::size_t>(p)), 0.0,
+                       std::span<double>(w[static_cast<std::size_t>(p)].data(), static_cast<std::size_t>(p)));
+    }
+    return w;
+  }();
+  if (first == centred) {
+    s.weight = centred_weights[static_cast<std::size_t>(order)];
+    return s;
   }
   lagrange_weights(std::span<const double>(nodes.data(), static_cast<std::size_t>(order)), 0.0,
                    std::span<double>(s.weight.data(), static_cast<std::size_t>(order)));
@@ -260,6 +276,19 @@ bool AdaptiveGrid<Dim>::block_touches_high(const Key& key, int axis) const {
 
 namespace {
 
+/// BlockKey::from_coords, interleaving only the bits the coordinates use (the plan builder's
+/// hot spot: a full 64-bit interleave per lookup dominated it).
+template <int Dim>
+BlockKey<Dim> morton_key(int level, const std::array<std::uint32_t, Dim>& c) {
+  std::uint32_t all = 0;
+  for (auto v : c) all |= v;
+  BlockKey<Dim> key{level, 0};
+  for (int b = 0; (all >> b) != 0; ++b)
+    for (int a = 0; a < Dim; ++a)
+      key.morton |= static_cast<std::uint64_t>((c[static_cast<std::size_t>(a)] >> b) & 1u) << (b * Dim + a);
+  return key;
+}
+
 template <int Dim>
 struct PointResolver {
   const BlockForest<Dim>& forest;
@@ -283,7 +312,7 @@ struct PointResolver {
         c[au] = static_cast<std::uint32_t>(at / config.block_size);
       }
       if (l == last_level && c == last_coords) return last_leaf;
-      if (const auto found = forest.find(BlockKey<Dim>::from_coords(l, c))) {
+      if (const auto found = forest.find(morton_key<Dim>(l, c))) {
         last_level = l;
         last_coords = c;
         last_leaf = *found;
@@ -400,7 +429,7 @@ void AdaptiveGrid<Dim>::build_ghost_plan() {
                                                                            : GhostKind::kFromCoarser);
       terms.clear();
       resolver.resolve(key.level, idx, 1.0, terms);
-      std::sort(terms.begin(), terms.end(), [](const Term& x, const Term& y) {
+      if (terms.size() > 1) std::sort(terms.begin(), terms.end(), [](const Term& x, const Term& y) {
         return x.leaf != y.leaf ? x.leaf < y.leaf : x.point < y.point;
       });
       for (std::size_t t = 0; t < terms.size(); ++t) {
@@ -755,10 +784,12 @@ AdaptCounts AdaptiveGrid<Dim>::adapt(const ThresholdConfig& th, AdaptPass pass, 
 
 template <int Dim>
 AdaptCounts AdaptiveGrid<Dim>::adapt_with_tags(std::span<const AdaptTag> tags) {
-  const BlockForest<Dim> old_forest = forest_;
+  BlockForest<Dim> next = forest_;
+  const AdaptCounts counts = next.adapt(tags);  // refine, coarsen, 2:1 balance
+  if (counts.refined == 0 && counts.coarsened == 0) return counts;  // same blocks, same ghosts
+  forest_ = std::move(next);
   const std::vector<Key> old_keys = local_keys_;
   const std::vector<std::vector<double>> old_data = std::move(data_);
-  const AdaptCounts counts = forest_.adapt(tags);  // refine, coarsen, 2:1 balance
   refresh_partition();
   allocate_local();
 
