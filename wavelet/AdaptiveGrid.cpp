@@ -302,6 +302,15 @@ struct PointResolver {
   /// outwards from `level` (2:1 balance puts the answer within a level or two), and the last
   /// hit is remembered: consecutive ghost points mostly fall into the same block.
   std::size_t leaf_containing(int level, const std::array<GlobalIndex64, Dim>& idx) const {
+    if (last_level >= 0) {
+      bool same = true;
+      for (int a = 0; a < Dim && same; ++a) {
+        const auto au = static_cast<std::size_t>(a);
+        const GlobalIndex64 at = last_level >= level ? idx[au] << (last_level - level) : idx[au] >> (level - last_level);
+        same = static_cast<std::uint32_t>(at / config.block_size) == last_coords[au];
+      }
+      if (same) return last_leaf;
+    }
     for (int step = 0; step <= 2 * config.max_level + 1; ++step) {
       const int l = level + ((step % 2 == 0) ? step / 2 : -(step + 1) / 2);
       if (l < 0 || l > config.max_level) continue;
@@ -311,7 +320,6 @@ struct PointResolver {
         const GlobalIndex64 at = l >= level ? idx[au] << (l - level) : idx[au] >> (level - l);
         c[au] = static_cast<std::uint32_t>(at / config.block_size);
       }
-      if (l == last_level && c == last_coords) return last_leaf;
       if (const auto found = forest.find(morton_key<Dim>(l, c))) {
         last_level = l;
         last_coords = c;
