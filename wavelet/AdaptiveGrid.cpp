@@ -140,11 +140,11 @@ AdaptiveGrid<Dim>::AdaptiveGrid(GridConfig<Dim> config, MPI_Comm comm)
     throw std::invalid_argument("AdaptiveGrid: interpolation order must be 4 or 6");
   if (config_.min_level < 0 || config_.min_level > config_.max_level)
     throw std::invalid_argument("AdaptiveGrid: need 0 <= min_level <= max_level");
-  if (config_.ghosts == 0) config_.ghosts = config_.order;
   // Prediction of the last odd point reads order - 1 points beyond it; derivatives accuracy / 2.
-  if (config_.ghosts % 2 != 0 || config_.ghosts < config_.order - 1 ||
-      config_.ghosts < config_.derivative_accuracy / 2 || config_.ghosts > bs)
-    throw std::invalid_argument("AdaptiveGrid: ghosts must be even, >= order - 1, <= block size");
+  // (Stencils are built from global level indices, so the ghost width need not be even.)
+  if (config_.ghosts == 0) config_.ghosts = std::max(config_.order - 1, config_.derivative_accuracy / 2);
+  if (config_.ghosts < config_.order - 1 || config_.ghosts < config_.derivative_accuracy / 2 || config_.ghosts > bs)
+    throw std::invalid_argument("AdaptiveGrid: ghosts must be >= order - 1, >= accuracy / 2 and <= block size");
   if (config_.fields.empty()) throw std::invalid_argument("AdaptiveGrid: no fields");
   for (int a = 0; a < Dim; ++a) {
     const auto au = static_cast<std::size_t>(a);

@@ -31,7 +31,8 @@
 // filled by P, removed points restricted by injection.
 //
 // Storage. Each field is one array of local blocks; a block is an ArrayShape of Bs + 2g points
-// per axis (g ghost layers, g = order by default, even so that array parity = level parity).
+// per axis (g ghost layers, by default the least that prediction and derivatives read:
+// max(order - 1, accuracy / 2)).
 // Ghost exchange across ranks uses non-blocking point-to-point messages with a plan built once
 // per adaptation.
 #include <mpi.h>
@@ -61,7 +62,7 @@ struct GridConfig {
   int min_level = 0;                 ///< Jmin: the grid never coarsens below it
   int max_level = 4;                 ///< Jmax
   int order = 4;                     ///< Deslauriers-Dubuc interpolation order: 4 or 6
-  int ghosts = 0;                    ///< ghost layers; 0 takes `order` (enough for prediction)
+  int ghosts = 0;                    ///< ghost layers; 0 takes the least the stencils need
   int derivative_accuracy = 4;       ///< finite-difference order of the derivative operators
   CurveOrder curve = CurveOrder::kHilbert;
   std::vector<std::string> fields;   ///< named fields held at every point
