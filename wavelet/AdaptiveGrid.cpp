@@ -338,13 +338,14 @@ struct PointResolver {
   void resolve(int level, const std::array<GlobalIndex64, Dim>& idx, double weight,
                std::vector<Term>& out) const {
     const std::size_t leaf = leaf_containing(level, idx);
-    const BlockKey<Dim> key = forest.leaves()[leaf];
-    if (key.level >= level) {
-      const auto c = key.coords();
+    // leaf_containing leaves the leaf's level and coordinates in last_*: no de-interleaving.
+    const int leaf_level = last_level;
+    if (leaf_level >= level) {
+      const auto c = last_coords;
       std::int64_t point = 0;
       for (int a = Dim - 1; a >= 0; --a) {
         const auto au = static_cast<std::size_t>(a);
-        const GlobalIndex64 fine = idx[au] << (key.level - level);
+        const GlobalIndex64 fine = idx[au] << (leaf_level - level);
         point = point * config.block_size + (fine - static_cast<GlobalIndex64>(c[au]) * config.block_size);
       }
       out.push_back({leaf, point, weight});
