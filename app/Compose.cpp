@@ -2,6 +2,7 @@
 
 #include "app/Simulation.hpp"
 #include "particles/ParticleSystem.hpp"
+#include "wavelet/WaveletSystem.hpp"
 
 namespace grainwave::app {
 
@@ -10,6 +11,7 @@ const SceneSchema& scene_schema() {
     SceneSchema s;
     Simulation::declare(s);
     particles::ParticleSystem::declare(s);
+    wavelet::WaveletSystem::declare(s);
     return s;
   }();
   return schema;
@@ -17,6 +19,7 @@ const SceneSchema& scene_schema() {
 
 std::unique_ptr<io::System> compose_system(const Scene& scene) {
   if (scene.has("particles")) return std::make_unique<particles::ParticleSystem>(scene);
+  if (scene.has("wavelet")) return wavelet::WaveletSystem::create(scene);
   throw InputError({scene.file(), 0}, "",
                    "the scene declares no physics to run: add a [particles] section",
                    "see docs/scene-reference.md");

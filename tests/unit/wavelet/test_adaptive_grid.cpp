@@ -1,0 +1,359 @@
+// AdaptiveGrid: coordinates, ghosts per interface type, thresholding and adaptation against
+// analytic fields, perfect reconstruction, derivative orders on adapted grids. Runs on any number
+// of ranks (ctest runs it on 1 and 2); every assertion holds globally.
+#include <gtest/gtest.h>
+#include <mpi.h>
+
+#include <cmath>
+#include <cstdio>
+#include <numbers>
+#include <vector>
+
+#include "wavelet/AdaptiveGrid.hpp"
+
+namespace gw = grainwave::wavelet;
+
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+double global_max(double v) {
+  double m = 0;
+  MPI_Allreduce(&v, &m, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+  return m;
+}
+std::int64_t global_sum(std::int64_t v) {
+  std::int64_t s = 0;
+  MPI_Allreduce(&v, &s, 1, MPI_INT64_T, MPI_SUM, MPI_COMM_WORLD);
+  return s;
+}
+bool root() {
+  int r = 0;
+  MPI_Comm_rank(MPI_COMM_WORLD, &r);
+  return r == 0;
+}
+
+template <int Dim>
+gw::GridConfig<Dim> unit_box(bool periodic, int min_level, int max_level, int order = 4) {
+  gw::GridConfig<Dim> c;
+  c.lo.fill(0.0);
+  c.hi.fill(1.0);
+  c.roots.fill(2);
+  c.periodic.fill(periodic);
+  c.min_level = min_level;
+  c.max_level = max_level;
+  c.order = order;
+  c.fields = {"u", "du"};
+  return c;
+}
+
+/// Max over every local point of |u - exact| (interior only, or ghosts of one kind).
+template <int Dim, class F>
+double max_error(const gw::AdaptiveGrid<Dim>& grid, int field, F&& exact, bool ghosts, gw::GhostKind kind) {
+  const auto shape = grid.layout().shape();
+  const int g = grid.layout().ghosts, bs = grid.config().block_size;
+  double err = 0;
+  for (std::size_t s = 0; s < grid.local_blocks(); ++s) {
+    const auto u = grid.block(field, s);
+    for (std::size_t p = 0; p < shape.size(); ++p) {
+      auto i = shape.coords(static_cast<std::ptrdiff_t>(p));
+      bool interior = true;
+      for (auto& c : i) {
+        c -= g;
+        interior = interior && c >= 0 && c < bs;
+      }
+      if (interior == ghosts) continue;
+      if (ghosts && grid.ghost_kind(s, static_cast<std::ptrdiff_t>(p)) != kind) continue;
+      err = std::max(err, std::abs(u[p] - exact(grid.position(s, i))));
+    }
+  }
+  return global_max(err);
+}
+
+/// Refines the blocks whose lower corner lies in x < 0.5 (a fixed mixed-level pattern).
+template <int Dim>
+void refine_left_half(gw::AdaptiveGrid<Dim>& grid) {
+  std::vector<gw::AdaptTag> tags(grid.global_blocks(), gw::AdaptTag::kKeep);
+  for (std::size_t l = 0; l < tags.size(); ++l)
+    if (grid.origin(grid.forest().leaves()[l])[0] < 0.5) tags[l] = gw::AdaptTag::kRefine;
+  grid.adapt_with_tags(tags);
+}
+
+}  // namespace
+
+TEST(AdaptiveGrid, BlockOriginAndSpacingFollowLevelAndMorton) {
+  auto c = unit_box<2>(false, 1, 3);
+  c.hi = {2.0, 1.0};
+  gw::AdaptiveGrid<2> grid(c);
+  EXPECT_EQ(grid.global_blocks(), 16u);  // 2x2 roots refined once
+  const auto h = grid.spacing(1);
+  EXPECT_DOUBLE_EQ(h[0], 2.0 / (2 * 8 * 2));
+  EXPECT_DOUBLE_EQ(h[1], 1.0 / (2 * 8 * 2));
+  const auto key = gw::BlockKey<2>::from_coords(1, {3, 2});
+  const auto x0 = grid.origin(key);
+  EXPECT_DOUBLE_EQ(x0[0], 3 * 8 * h[0]);
+  EXPECT_DOUBLE_EQ(x0[1], 2 * 8 * h[1]);
+  EXPECT_DOUBLE_EQ(grid.uniform_points(), (2 * 8 * 8.0) * (2 * 8 * 8.0));
+}
+
+// Polynomials of degree < order are predicted exactly, so every ghost of a mixed-level
+// non-periodic grid equals the polynomial: same level (copy), fine -> coarse (injection) and
+// coarse -> fine (prediction) alike, in 1D, 2D and 3D.
+template <int Dim>
+void ghosts_exact_for_cubics() {
+  gw::AdaptiveGrid<Dim> grid(unit_box<Dim>(false, 0, 3));
+  refine_left_half(grid);
+  refine_left_half(grid);  // levels 0, 1, 2 side by side
+  auto cubic = [](const std::array<double, Dim>& x) {
+    double v = 1;
+    for (int a = 0; a < Dim; ++a) v += (0.3 + a) * x[a] * x[a] * x[a] - x[a] * x[a] + 0.7 * x[a];
+    if constexpr (Dim > 1) v += 0.5 * x[0] * x[0] * x[1];
+    return v;
+  };
+  grid.sample([&](const auto& x, std::span<double> v) { v[0] = cubic(x); v[1] = 0; });
+  grid.fill_ghosts();
+  const auto n = grid.ghost_counts();
+  for (int k = 0; k < 4; ++k) EXPECT_GT(global_sum(n[static_cast<std::size_t>(k)]), 0) << "ghost kind " << k;
+  for (auto kind : {gw::GhostKind::kSameLevel, gw::GhostKind::kFromFiner, gw::GhostKind::kFromCoarser})
+    EXPECT_LT(max_error(grid, 0, cubic, true, kind), 1e-12) << "kind " << static_cast<int>(kind);
+}
+TEST(AdaptiveGrid, GhostsExactForCubics1D) { ghosts_exact_for_cubics<1>(); }
+TEST(AdaptiveGrid, GhostsExactForCubics2D) { ghosts_exact_for_cubics<2>(); }
+TEST(AdaptiveGrid, GhostsExactForCubics3D) { ghosts_exact_for_cubics<3>(); }
+
+// Periodic images and smooth non-polynomial data: copies and injections stay exact, predicted
+// ghosts converge at the interpolation order (4 and 6) when every level moves up by one.
+template <int Dim>
+void periodic_ghost_orders(int order) {
+  auto field = [](const std::array<double, Dim>& x) {
+    double v = 0;
+    for (int a = 0; a < Dim; ++a) v += std::sin(2 * kPi * x[a] + a + 0.4);  // no node of sin at x = 0.5
+    return v;
+  };
+  std::array<double, 2> err{};
+  for (int shift = 0; shift < 2; ++shift) {
+    gw::AdaptiveGrid<Dim> grid(unit_box<Dim>(true, 1 + shift, 4, order));
+    refine_left_half(grid);
+    grid.sample([&](const auto& x, std::span<double> v) { v[0] = field(x); v[1] = 0; });
+    grid.fill_ghosts();
+    EXPECT_EQ(global_sum(grid.ghost_counts()[3]), 0) << "a periodic domain has no outside";
+    EXPECT_LT(max_error(grid, 0, field, true, gw::GhostKind::kSameLevel), 1e-14);
+    EXPECT_LT(max_error(grid, 0, field, true, gw::GhostKind::kFromFiner), 1e-14);
+    err[static_cast<std::size_t>(shift)] = max_error(grid, 0, field, true, gw::GhostKind::kFromCoarser);
+  }
+  const double measured = std::log2(err[0] / err[1]);
+  if (root()) std::printf("periodic %dD coarse->fine ghosts, order %d: errors %.3e %.3e, order %.2f\n", Dim, order, err[0], err[1], measured);
+  EXPECT_NEAR(measured, order, 0.3);
+}
+TEST(AdaptiveGrid, PeriodicGhostOrder2D) {
+  periodic_ghost_orders<2>(4);
+  periodic_ghost_orders<2>(6);
+}
+TEST(AdaptiveGrid, PeriodicGhostOrder1D) { periodic_ghost_orders<1>(4); }
+
+// Coarsening a refined grid restores the original values exactly (injection of the copied even
+// points), and refining by prediction reproduces a cubic exactly.
+TEST(AdaptiveGrid, RefineThenCoarsenIsIdentity) {
+  gw::AdaptiveGrid<2> grid(unit_box<2>(false, 1, 3));
+  grid.sample([](const auto& x, std::span<double> v) { v[0] = std::exp(std::sin(5 * x[0]) * x[1]); v[1] = x[0] * x[0] * x[0] + x[1]; });
+  grid.fill_ghosts();
+  const gw::AdaptiveGrid<2> original(grid);
+  grid.refine_to_uniform();
+  EXPECT_EQ(grid.global_blocks(), 4u * 64u);
+  EXPECT_LT(max_error(grid, 1, [](const auto& x) { return x[0] * x[0] * x[0] + x[1]; }, false, gw::GhostKind::kSameLevel), 1e-12);
+  for (int pass = 0; pass < 2; ++pass) {
+    std::vector<gw::AdaptTag> tags(grid.global_blocks(), gw::AdaptTag::kCoarsen);
+    grid.adapt_with_tags(tags);
+  }
+  ASSERT_EQ(grid.global_blocks(), original.global_blocks());
+  for (std::size_t s = 0; s < grid.local_blocks(); ++s) {
+    ASSERT_EQ(grid.key(s), original.key(s));
+    const std::span<const double> a = grid.block(0, s), b = original.block(0, s);
+    const auto shape = grid.layout().shape();
+    for (std::size_t p = 0; p < shape.size(); ++p) {
+      auto i = shape.coords(static_cast<std::ptrdiff_t>(p));
+      bool interior = true;
+      for (int c : i) interior = interior && c >= grid.layout().ghosts && c < grid.layout().ghosts + 8;
+      if (interior) {
+        ASSERT_EQ(a[p], b[p]);
+      }
+    }
+  }
+}
+
+namespace {
+/// A steep front and a bump (1D), or a smoothed disc (2D).
+double front_1d(const std::array<double, 1>& x) {
+  return std::tanh((x[0] - 0.4) / 0.02) + std::exp(-std::pow((x[0] - 0.7) / 0.05, 2));
+}
+double disc_2d(const std::array<double, 2>& x) {
+  const double r = std::hypot(x[0] - 0.5, x[1] - 0.45);
+  return 0.5 * (1 - std::tanh((r - 0.25) / 0.04));
+}
+
+struct Adapted {
+  double error;
+  std::int64_t significant, blocks;
+};
+
+template <int Dim, class F>
+Adapted adapt_and_reconstruct(gw::GridConfig<Dim> c, double eps, F&& exact) {
+  gw::AdaptiveGrid<Dim> grid(c);
+  gw::ThresholdConfig th;
+  th.epsilon = eps;
+  th.groups = {0, -1};
+  grid.adapt_to_function(th, [&](const auto& x, std::span<double> v) { v[0] = exact(x); v[1] = 0; });
+  Adapted out{0, grid.significant_points(th), static_cast<std::int64_t>(grid.global_blocks())};
+  gw::AdaptiveGrid<Dim> uniform(grid);
+  uniform.refine_to_uniform();
+  out.error = max_error(uniform, 0, exact, false, gw::GhostKind::kSameLevel);
+  return out;
+}
+}  // namespace
+
+// Error control: the adapted grid, reconstructed to the uniform finest grid by prediction, is
+// within C * eps of the field (scale max |u| = 1..2). The active set grows like eps^(-d/p).
+TEST(AdaptiveGrid, ReconstructionErrorBoundedByEpsilon1D) {
+  auto c = unit_box<1>(false, 0, 9);
+  std::vector<double> eps = {1e-2, 1e-3, 1e-4, 1e-5, 1e-6}, sig;
+  double worst = 0;
+  for (double e : eps) {
+    const auto r = adapt_and_reconstruct<1>(c, e, front_1d);
+    const double C = r.error / (e * 2.0);  // scale: max |u| ~ 2
+    worst = std::max(worst, C);
+    sig.push_back(static_cast<double>(r.significant));
+    if (root()) std::printf("1D eps %.0e: error %.3e, C %.2f, significant %lld, blocks %lld\n", e, r.error, C, static_cast<long long>(r.significant), static_cast<long long>(r.blocks));
+  }
+  EXPECT_LT(worst, 2.0);
+  // Growth over the two finest decades (the coarser ones hold only a handful of coefficients).
+  const double slope = std::log(sig[4] / sig[2]) / std::log(eps[2] / eps[4]);
+  if (root()) std::printf("1D significant ~ eps^-%.3f (d/p = 0.25)\n", slope);
+  EXPECT_NEAR(slope, 0.25, 0.1);
+}
+
+TEST(AdaptiveGrid, ReconstructionErrorBoundedByEpsilon2D) {
+  auto c = unit_box<2>(true, 1, 4);
+  double worst = 0;
+  std::vector<double> eps = {1e-2, 1e-3, 1e-4}, sig;
+  for (double e : eps) {
+    const auto r = adapt_and_reconstruct<2>(c, e, disc_2d);
+    const double C = r.error / e;
+    worst = std::max(worst, C);
+    sig.push_back(static_cast<double>(r.significant));
+    if (root()) std::printf("2D eps %.0e: error %.3e, C %.2f, significant %lld, blocks %lld\n", e, r.error, C, static_cast<long long>(r.significant), static_cast<long long>(r.blocks));
+  }
+  EXPECT_LT(worst, 2.0);
+  // The finest decade: at eps = 1e-2 the front holds too few coefficients to be asymptotic.
+  const double slope = std::log(sig[2] / sig[1]) / std::log(eps[1] / eps[2]);
+  if (root()) std::printf("2D significant ~ eps^-%.3f (d/p = 0.5)\n", slope);
+  EXPECT_NEAR(slope, 0.5, 0.15);
+}
+
+TEST(AdaptiveGrid, ForcedRegionSitsAtFinestLevel) {
+  gw::AdaptiveGrid<2> grid(unit_box<2>(false, 0, 3));
+  gw::ThresholdConfig th;
+  th.epsilon = 1e-3;
+  auto region = [](const std::array<double, 2>& lo, const std::array<double, 2>& hi) {
+    return lo[0] <= 0.3 && hi[0] >= 0.3 && lo[1] <= 0.6 && hi[1] >= 0.6;  // holds (0.3, 0.6)
+  };
+  grid.adapt_to_function(th, [](const auto&, std::span<double> v) { v[0] = 1; v[1] = 0; }, region);
+  int found = 0;
+  for (const auto& k : grid.forest().leaves()) {
+    const auto lo = grid.origin(k);
+    const double w = 8 * grid.spacing(k.level)[0];
+    if (region(lo, {lo[0] + w, lo[1] + w})) {
+      ++found;
+      EXPECT_EQ(k.level, 3);
+    }
+  }
+  EXPECT_GE(found, 1);
+  EXPECT_TRUE(grid.forest().is_balanced());
+  // A constant field has no significant coefficient: far from the region the grid is coarse.
+  EXPECT_LT(grid.global_blocks(), 40u);
+}
+
+// Normalised L-infinity per field: a small-amplitude field refines as much as a large one when
+// normalised separately, and not at all when grouped with the large one or judged absolutely.
+TEST(AdaptiveGrid, GroupedAndSeparateNormalisation) {
+  auto c = unit_box<2>(true, 1, 4);
+  auto run = [&](gw::Normalisation norm, std::vector<int> groups, int field) {
+    gw::AdaptiveGrid<2> grid(c);
+    gw::ThresholdConfig th;
+    th.epsilon = 1e-3;
+    th.normalisation = norm;
+    th.groups = std::move(groups);
+    grid.adapt_to_function(th, [&](const auto& x, std::span<double> v) {
+      v[0] = field == 0 ? disc_2d(x) : 0.0;
+      v[1] = field == 1 ? 1e-4 * disc_2d(x) : 0.0;
+      if (field == 2) {
+        v[0] = disc_2d(x);
+        v[1] = 1e-4 * std::exp(-(std::pow(x[0] - 0.15, 2) + std::pow(x[1] - 0.8, 2)) / 0.0025);
+      }
+    });
+    return grid.global_blocks();
+  };
+  const auto big = run(gw::Normalisation::kLinf, {}, 0);
+  const auto small_separate = run(gw::Normalisation::kLinf, {}, 1);
+  const auto small_absolute = run(gw::Normalisation::kAbsolute, {}, 1);
+  const auto both_separate = run(gw::Normalisation::kLinf, {0, 1}, 2);
+  const auto both_grouped = run(gw::Normalisation::kLinf, {0, 0}, 2);
+  if (root()) std::printf("blocks: big %zu, small separate %zu, small absolute %zu, two separate %zu, grouped %zu\n", big, small_separate, small_absolute, both_separate, both_grouped);
+  EXPECT_EQ(big, small_separate);
+  EXPECT_EQ(small_absolute, 16u);  // 1e-4 amplitude: nothing above 1e-3 absolute
+  EXPECT_GT(both_separate, both_grouped);
+}
+
+// Derivatives at every active point of a mixed-level periodic grid (one-sided closures are
+// tested in test_stencils.cpp) converge at their order when every level moves up by one. Interpolation one order above the derivative keeps the coarse->fine
+// ghosts (error h^p, divided by h or h^2) from lowering the order.
+template <int Dim>
+void derivative_orders(int accuracy, int order, std::array<double, 2> expected) {
+  std::array<std::array<double, 3>, 2> err{};
+  auto u = [](const std::array<double, Dim>& x) {
+    double v = 0;
+    for (int a = 0; a < Dim; ++a) v += std::sin(2 * kPi * x[a] + 0.3 * a) * (1 + 0.2 * a);
+    return v;
+  };
+  auto du = [](const std::array<double, Dim>& x) { return 2 * kPi * std::cos(2 * kPi * x[0]); };
+  auto d2u = [](const std::array<double, Dim>& x) { return -4 * kPi * kPi * std::sin(2 * kPi * x[0]); };
+  for (int shift = 0; shift < 3; ++shift) {
+    auto c = unit_box<Dim>(true, 1 + shift, 5, order);
+    c.derivative_accuracy = accuracy;
+    gw::AdaptiveGrid<Dim> grid(c);
+    refine_left_half(grid);
+    grid.sample([&](const auto& x, std::span<double> v) { v[0] = u(x); v[1] = 0; });
+    grid.fill_ghosts();
+    grid.first_derivative(0, 0, 1);
+    err[0][static_cast<std::size_t>(shift)] = max_error(grid, 1, du, false, gw::GhostKind::kSameLevel);
+    grid.second_derivative(0, 0, 1);
+    err[1][static_cast<std::size_t>(shift)] = max_error(grid, 1, d2u, false, gw::GhostKind::kSameLevel);
+  }
+  for (int m = 0; m < 2; ++m) {
+    // The last pair: the coarsest grid (16 points across) is not yet asymptotic.
+    const double measured = std::log2(err[m][1] / err[m][2]);
+    if (root()) std::printf("%dD d%d/dx%d, accuracy %d, interpolation %d: errors %.3e %.3e %.3e, order %.2f\n", Dim, m + 1, m + 1, accuracy, order, err[m][0], err[m][1], err[m][2], measured);
+    EXPECT_NEAR(measured, expected[static_cast<std::size_t>(m)], 0.2) << "derivative " << m + 1;
+  }
+}
+TEST(AdaptiveGrid, DerivativeOrders1D) {
+  derivative_orders<1>(2, 4, {2, 2});
+  derivative_orders<1>(4, 6, {4, 4});
+  // The default pairing (4th-order derivatives, 4th-order interpolation): first derivatives
+  // keep order 4 (the antisymmetric rows cancel the smooth O(h^4) error of the predicted odd
+  // ghosts to leading order), second derivatives drop to order 3 at coarse-fine interfaces.
+  derivative_orders<1>(4, 4, {4, 3});
+}
+TEST(AdaptiveGrid, DerivativeOrders2D) { derivative_orders<2>(4, 6, {4, 4}); }
+
+TEST(AdaptiveGrid, RebuildFromLeavesReproducesTheForest) {
+  gw::AdaptiveGrid<2> grid(unit_box<2>(true, 1, 4));
+  gw::ThresholdConfig th;
+  grid.adapt_to_function(th, [](const auto& x, std::span<double> v) { v[0] = disc_2d(x); v[1] = 0; });
+  const std::vector<gw::BlockKey<2>> leaves(grid.forest().leaves().begin(), grid.forest().leaves().end());
+  gw::AdaptiveGrid<2> other(unit_box<2>(true, 1, 4));
+  other.rebuild(leaves);
+  EXPECT_TRUE(std::equal(leaves.begin(), leaves.end(), other.forest().leaves().begin()));
+  EXPECT_EQ(other.local_blocks(), grid.local_blocks());
+  std::vector<gw::BlockKey<2>> broken(leaves.begin() + 1, leaves.end());
+  EXPECT_THROW(other.rebuild(broken), std::invalid_argument);
+}

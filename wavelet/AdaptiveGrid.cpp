@@ -1,0 +1,984 @@
+#include "wavelet/AdaptiveGrid.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+#include <unordered_set>
+
+#include "wavelet/InterpolatingWavelet.hpp"
+
+namespace grainwave::wavelet {
+
+namespace {
+
+using GlobalIndex64 = std::int64_t;
+
+/// Interpolation weights along one axis of a block array: value = sum_k w[k] u[at[k]].
+struct AxisStencil {
+  int size = 1;
+  std::array<int, kMaxPredictOrder> at{};
+  std::array<double, kMaxPredictOrder> w{};
+};
+
+/// Deslauriers-Dubuc prediction of the odd level index `odd` of a line of `n` points: the
+/// `order` nearest evens, shifted inside [0, n) on a non-periodic line (one-sided rows of the
+/// same order), left unwrapped on a periodic one. Nodes are relative integers, so the dyadic
+/// weights are exact.
+struct LineStencil {
+  int size = 0;
+  std::array<GlobalIndex64, kMaxPredictOrder> even{};
+  std::array<double, kMaxPredictOrder> weight{};
+};
+
+LineStencil dd_line(int order, GlobalIndex64 odd, GlobalIndex64 n, bool periodic) {
+  GlobalIndex64 first = odd - (order - 1);
+  const GlobalIndex64 centred = first;
+  if (!periodic) {
+    const GlobalIndex64 last_even = (n - 1) - ((n - 1) % 2);
+    first = std::clamp<GlobalIndex64>(first, 0, last_even - 2 * (order - 1));
+  }
+  LineStencil s;
+  s.size = order;
+  std::array<double, kMaxPredictOrder> nodes{};
+  for (int m = 0; m < order; ++m) {
+    const auto mu = static_cast<std::size_t>(m);
+    s.even[mu] = first + 2 * m;
+    nodes[mu] = static_cast<double>(s.even[mu] - odd);
+  }
+  // Centred rows (all but a few near bounded edges) share one set of weights: compute it once.
+  static const auto centred_weights = [] {
+    std::array<std::array<double, kMaxPredictOrder>, kMaxPredictOrder + 1> w{};
+    for (int p = 2; p <= kMaxPredictOrder; p += 2) {
+      std::array<double, kMaxPredictOrder> x{};
+      for (int m = 0; m < p; ++m) x[static_cast<std::size_t>(m)] = 2.0 * m - (p - 1);
+      lagrange_weights(std::span<const double>(x.data(), static_cast<std::size_t>(p)), 0.0,
+                       std::span<double>(w[static_cast<std::size_t>(p)].data(), static_cast<std::size_t>(p)));
+    }
+    return w;
+  }();
+  if (first == centred) {
+    s.weight = centred_weights[static_cast<std::size_t>(order)];
+    return s;
+  }
+  lagrange_weights(std::span<const double>(nodes.data(), static_cast<std::size_t>(order)), 0.0,
+                   std::span<double>(s.weight.data(), static_cast<std::size_t>(order)));
+  return s;
+}
+
+/// sum over the tensor product of per-axis stencils of w * u (strides of an ArrayShape).
+template <int Dim>
+double tensor_sum(const double* u, const std::array<std::ptrdiff_t, Dim>& stride,
+                  const std::array<const AxisStencil*, Dim>& st) {
+  double sum = 0;
+  if constexpr (Dim == 1) {
+    for (int p = 0; p < st[0]->size; ++p) sum += st[0]->w[p] * u[st[0]->at[p]];
+  } else if constexpr (Dim == 2) {
+    for (int q = 0; q < st[1]->size; ++q) {
+      const double* row = u + st[1]->at[q] * stride[1];
+      double line = 0;
+      for (int p = 0; p < st[0]->size; ++p) line += st[0]->w[p] * row[st[0]->at[p]];
+      sum += st[1]->w[q] * line;
+    }
+  } else {
+    for (int r = 0; r < st[2]->size; ++r) {
+      double plane = 0;
+      for (int q = 0; q < st[1]->size; ++q) {
+        const double* row = u + st[2]->at[r] * stride[2] + st[1]->at[q] * stride[1];
+        double line = 0;
+        for (int p = 0; p < st[0]->size; ++p) line += st[0]->w[p] * row[st[0]->at[p]];
+        plane += st[1]->w[q] * line;
+      }
+      sum += st[2]->w[r] * plane;
+    }
+  }
+  return sum;
+}
+
+struct Term {
+  std::size_t leaf;
+  std::int64_t point;  // interior flat index of the leaf
+  double weight;
+};
+
+}  // namespace
+
+template <int Dim>
+struct AdaptiveGrid<Dim>::GhostPlan {
+  // One row per ghost point of the local blocks: its offset in a field array and its value as
+  // a weighted sum of local values (local_*) and of values received from other ranks (remote_*).
+  std::vector<std::int64_t> dest;
+  std::vector<std::int32_t> local_begin, remote_begin;
+  std::vector<std::int64_t> local_src;
+  std::vector<double> local_w;
+  std::vector<std::int32_t> remote_src;  // index of a received point (times fields + field)
+  std::vector<double> remote_w;
+  std::vector<std::uint8_t> kind;        // per local array point (GhostKind)
+  // Messages: point-major buffers [point][field], one contiguous range per peer rank.
+  std::vector<int> recv_rank, recv_first, recv_count;
+  std::vector<int> send_rank, send_first, send_count;
+  std::vector<std::int64_t> send_src;
+  std::vector<double> send_buffer, recv_buffer;
+  std::vector<MPI_Request> requests;
+};
+
+template <int Dim>
+AdaptiveGrid<Dim>::AdaptiveGrid(GridConfig<Dim> config, MPI_Comm comm)
+    : config_(std::move(config)), comm_(comm), forest_([&] {
+        ForestConfig<Dim> f;
+        f.roots = config_.roots;
+        f.periodic = config_.periodic;
+        f.max_level = config_.max_level;
+        f.curve = config_.curve;
+        return f;
+      }()) {
+  const int bs = config_.block_size;
+  if (bs < 8 || bs > kMaxBlockSize || bs % 2 != 0)
+    throw std::invalid_argument("AdaptiveGrid: block size must be even, 8.." + std::to_string(kMaxBlockSize));
+  if (config_.order != 4 && config_.order != 6)
+    throw std::invalid_argument("AdaptiveGrid: interpolation order must be 4 or 6");
+  if (config_.min_level < 0 || config_.min_level > config_.max_level)
+    throw std::invalid_argument("AdaptiveGrid: need 0 <= min_level <= max_level");
+  // Prediction of the last odd point reads order - 1 points beyond it; derivatives accuracy / 2.
+  // (Stencils are built from global level indices, so the ghost width need not be even.)
+  if (config_.ghosts == 0) config_.ghosts = std::max(config_.order - 1, config_.derivative_accuracy / 2);
+  if (config_.ghosts < config_.order - 1 || config_.ghosts < config_.derivative_accuracy / 2 || config_.ghosts > bs)
+    throw std::invalid_argument("AdaptiveGrid: ghosts must be >= order - 1, >= accuracy / 2 and <= block size");
+  if (config_.fields.empty()) throw std::invalid_argument("AdaptiveGrid: no fields");
+  for (int a = 0; a < Dim; ++a) {
+    const auto au = static_cast<std::size_t>(a);
+    if (!(config_.hi[au] > config_.lo[au])) throw std::invalid_argument("AdaptiveGrid: empty domain");
+    // A non-periodic line needs `order` coarse points at the coarsest level for one-sided rows.
+    if (!config_.periodic[au] && config_.roots[au] * bs / 2 < config_.order)
+      throw std::invalid_argument("AdaptiveGrid: too few points for the interpolation order");
+  }
+  MPI_Comm_rank(comm_, &rank_);
+  MPI_Comm_size(comm_, &ranks_);
+  layout_.interior.fill(bs);
+  layout_.ghosts = config_.ghosts;
+  interior_points_ = 1;
+  for (int a = 0; a < Dim; ++a) interior_points_ *= static_cast<std::size_t>(bs);
+  block_volume_ = layout_.shape().size();
+  for (int l = 0; l < config_.min_level; ++l) {
+    std::vector<AdaptTag> all(forest_.size(), AdaptTag::kRefine);
+    forest_.adapt(all);
+  }
+  refresh_partition();
+  allocate_local();
+  build_ghost_plan();
+}
+
+template <int Dim>
+AdaptiveGrid<Dim>::AdaptiveGrid(const AdaptiveGrid& o)
+    : config_(o.config_), comm_(o.comm_), rank_(o.rank_), ranks_(o.ranks_), forest_(o.forest_),
+      offsets_(o.offsets_), first_leaf_(o.first_leaf_), local_keys_(o.local_keys_), layout_(o.layout_),
+      interior_points_(o.interior_points_), block_volume_(o.block_volume_), data_(o.data_) {
+  build_ghost_plan();
+}
+
+template <int Dim>
+AdaptiveGrid<Dim>::~AdaptiveGrid() = default;
+
+template <int Dim>
+void AdaptiveGrid<Dim>::refresh_partition() {
+  offsets_ = forest_.partition(ranks_);
+  first_leaf_ = offsets_[static_cast<std::size_t>(rank_)];
+  const auto leaves = forest_.leaves();
+  local_keys_.assign(leaves.begin() + static_cast<std::ptrdiff_t>(first_leaf_),
+                     leaves.begin() + static_cast<std::ptrdiff_t>(offsets_[static_cast<std::size_t>(rank_) + 1]));
+}
+
+template <int Dim>
+void AdaptiveGrid<Dim>::allocate_local() {
+  data_.assign(config_.fields.size(), std::vector<double>(local_keys_.size() * block_volume_, 0.0));
+}
+
+template <int Dim>
+int AdaptiveGrid<Dim>::owner(std::size_t leaf) const {
+  const auto it = std::upper_bound(offsets_.begin(), offsets_.end(), leaf);
+  return static_cast<int>(it - offsets_.begin()) - 1;
+}
+
+template <int Dim>
+typename AdaptiveGrid<Dim>::Point AdaptiveGrid<Dim>::spacing(int level) const {
+  Point h{};
+  for (int a = 0; a < Dim; ++a) {
+    const auto au = static_cast<std::size_t>(a);
+    h[au] = (config_.hi[au] - config_.lo[au]) /
+            (static_cast<double>(config_.roots[au]) * config_.block_size * std::ldexp(1.0, level));
+  }
+  return h;
+}
+
+template <int Dim>
+typename AdaptiveGrid<Dim>::Point AdaptiveGrid<Dim>::origin(const Key& key) const {
+  const Point h = spacing(key.level);
+  const auto c = key.coords();
+  Point x{};
+  for (int a = 0; a < Dim; ++a) {
+    const auto au = static_cast<std::size_t>(a);
+    x[au] = config_.lo[au] + static_cast<double>(c[au]) * config_.block_size * h[au];
+  }
+  return x;
+}
+
+template <int Dim>
+double AdaptiveGrid<Dim>::uniform_points() const {
+  double n = 1;
+  for (int a = 0; a < Dim; ++a)
+    n *= static_cast<double>(config_.roots[static_cast<std::size_t>(a)]) * config_.block_size *
+         std::ldexp(1.0, config_.max_level);
+  return n;
+}
+
+template <int Dim>
+typename AdaptiveGrid<Dim>::Point AdaptiveGrid<Dim>::position(std::size_t slot, const Index& i) const {
+  const Point x0 = origin(local_keys_[slot]);
+  const Point h = spacing(local_keys_[slot].level);
+  Point x{};
+  for (int a = 0; a < Dim; ++a) {
+    const auto au = static_cast<std::size_t>(a);
+    x[au] = x0[au] + i[au] * h[au];
+  }
+  return x;
+}
+
+template <int Dim>
+int AdaptiveGrid<Dim>::field_index(const std::string& name) const {
+  for (std::size_t k = 0; k < config_.fields.size(); ++k)
+    if (config_.fields[k] == name) return static_cast<int>(k);
+  return -1;
+}
+
+template <int Dim>
+std::span<double> AdaptiveGrid<Dim>::block(int field, std::size_t slot) {
+  return {data_[static_cast<std::size_t>(field)].data() + slot * block_volume_, block_volume_};
+}
+
+template <int Dim>
+std::span<const double> AdaptiveGrid<Dim>::block(int field, std::size_t slot) const {
+  return {data_[static_cast<std::size_t>(field)].data() + slot * block_volume_, block_volume_};
+}
+
+template <int Dim>
+bool AdaptiveGrid<Dim>::block_touches_low(const Key& key, int axis) const {
+  return key.coords()[static_cast<std::size_t>(axis)] == 0;
+}
+
+template <int Dim>
+bool AdaptiveGrid<Dim>::block_touches_high(const Key& key, int axis) const {
+  return key.coords()[static_cast<std::size_t>(axis)] + 1 == forest_.blocks_along(axis, key.level);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Ghost plan: every ghost point as a weighted sum of leaf interior points (see the header).
+
+namespace {
+
+/// BlockKey::from_coords, interleaving only the bits the coordinates use (the plan builder's
+/// hot spot: a full 64-bit interleave per lookup dominated it).
+template <int Dim>
+BlockKey<Dim> morton_key(int level, const std::array<std::uint32_t, Dim>& c) {
+  std::uint32_t all = 0;
+  for (auto v : c) all |= v;
+  BlockKey<Dim> key{level, 0};
+  for (int b = 0; (all >> b) != 0; ++b)
+    for (int a = 0; a < Dim; ++a)
+      key.morton |= static_cast<std::uint64_t>((c[static_cast<std::size_t>(a)] >> b) & 1u) << (b * Dim + a);
+  return key;
+}
+
+template <int Dim>
+struct PointResolver {
+  const BlockForest<Dim>& forest;
+  const GridConfig<Dim>& config;
+
+  GlobalIndex64 points_along(int axis, int level) const {
+    return static_cast<GlobalIndex64>(config.roots[static_cast<std::size_t>(axis)]) * config.block_size << level;
+  }
+
+  /// Leaf containing the level-`level` point `idx` (inside the domain). Levels are tried
+  /// outwards from `level` (2:1 balance puts the answer within a level or two), and the last
+  /// hit is remembered: consecutive ghost points mostly fall into the same block.
+  std::size_t leaf_containing(int level, const std::array<GlobalIndex64, Dim>& idx) const {
+    if (last_level >= 0) {
+      bool same = true;
+      for (int a = 0; a < Dim && same; ++a) {
+        const auto au = static_cast<std::size_t>(a);
+        const GlobalIndex64 at = last_level >= level ? idx[au] << (last_level - level) : idx[au] >> (level - last_level);
+        same = static_cast<std::uint32_t>(at / config.block_size) == last_coords[au];
+      }
+      if (same) return last_leaf;
+    }
+    for (int step = 0; step <= 2 * config.max_level + 1; ++step) {
+      const int l = level + ((step % 2 == 0) ? step / 2 : -(step + 1) / 2);
+      if (l < 0 || l > config.max_level) continue;
+      std::array<std::uint32_t, Dim> c{};
+      for (int a = 0; a < Dim; ++a) {
+        const auto au = static_cast<std::size_t>(a);
+        const GlobalIndex64 at = l >= level ? idx[au] << (l - level) : idx[au] >> (level - l);
+        c[au] = static_cast<std::uint32_t>(at / config.block_size);
+      }
+      if (const auto found = forest.find(morton_key<Dim>(l, c))) {
+        last_level = l;
+        last_coords = c;
+        last_leaf = *found;
+        return *found;
+      }
+    }
+    throw std::logic_error("AdaptiveGrid: point not covered by the forest");
+  }
+  mutable int last_level = -1;
+  mutable std::array<std::uint32_t, Dim> last_coords{};
+  mutable std::size_t last_leaf = 0;
+
+  /// Appends the terms giving the value at (level, idx): a leaf's point, by injection from a
+  /// finer leaf, or by Deslauriers-Dubuc prediction from level - 1.
+  void resolve(int level, const std::array<GlobalIndex64, Dim>& idx, double weight,
+               std::vector<Term>& out) const {
+    const std::size_t leaf = leaf_containing(level, idx);
+    // leaf_containing leaves the leaf's level and coordinates in last_*: no de-interleaving.
+    const int leaf_level = last_level;
+    if (leaf_level >= level) {
+      const auto c = last_coords;
+      std::int64_t point = 0;
+      for (int a = Dim - 1; a >= 0; --a) {
+        const auto au = static_cast<std::size_t>(a);
+        const GlobalIndex64 fine = idx[au] << (leaf_level - level);
+        point = point * config.block_size + (fine - static_cast<GlobalIndex64>(c[au]) * config.block_size);
+      }
+      out.push_back({leaf, point, weight});
+      return;
+    }
+    std::array<LineStencil, Dim> st{};
+    for (int a = 0; a < Dim; ++a) {
+      const auto au = static_cast<std::size_t>(a);
+      if (idx[au] % 2 == 0) {
+        st[au].size = 1;
+        st[au].even[0] = idx[au];
+        st[au].weight[0] = 1.0;
+      } else {
+        st[au] = dd_line(config.order, idx[au], points_along(a, level), config.periodic[au]);
+      }
+    }
+    std::array<int, Dim> k{};
+    while (true) {
+      std::array<GlobalIndex64, Dim> coarse{};
+      double w = weight;
+      for (int a = 0; a < Dim; ++a) {
+        const auto au = static_cast<std::size_t>(a);
+        const GlobalIndex64 n = points_along(a, level);
+        GlobalIndex64 e = st[au].even[static_cast<std::size_t>(k[au])];
+        e = ((e % n) + n) % n;  // periodic images (non-periodic stencils stay inside)
+        coarse[au] = e / 2;
+        w *= st[au].weight[static_cast<std::size_t>(k[au])];
+      }
+      resolve(level - 1, coarse, w, out);
+      int a = 0;
+      for (; a < Dim; ++a) {
+        const auto au = static_cast<std::size_t>(a);
+        if (++k[au] < st[au].size) break;
+        k[au] = 0;
+      }
+      if (a == Dim) break;
+    }
+  }
+};
+
+}  // namespace
+
+template <int Dim>
+void AdaptiveGrid<Dim>::build_ghost_plan() {
+  plan_ = std::make_unique<GhostPlan>();
+  GhostPlan& plan = *plan_;
+  const PointResolver<Dim> resolver{forest_, config_};
+  const auto shape = layout_.shape();
+  const int g = layout_.ghosts, bs = config_.block_size;
+  plan.kind.assign(local_keys_.size() * block_volume_, static_cast<std::uint8_t>(GhostKind::kSameLevel));
+  plan.local_begin.push_back(0);
+  plan.remote_begin.push_back(0);
+  // Requests to other ranks: (leaf, point) -> position in that rank's list.
+  std::vector<std::map<std::pair<std::size_t, std::int64_t>, int>> wanted(static_cast<std::size_t>(ranks_));
+  std::vector<std::pair<int, int>> remote_pending;  // (rank, position) per remote term
+  std::vector<Term> terms;
+
+  for (std::size_t s = 0; s < local_keys_.size(); ++s) {
+    const Key key = local_keys_[s];
+    const auto c = key.coords();
+    for (std::size_t p = 0; p < block_volume_; ++p) {
+      const auto i = shape.coords(static_cast<std::ptrdiff_t>(p));
+      bool interior = true, outside = false;
+      std::array<GlobalIndex64, Dim> idx{};
+      for (int a = 0; a < Dim; ++a) {
+        const auto au = static_cast<std::size_t>(a);
+        const int local = i[au] - g;
+        interior = interior && local >= 0 && local < bs;
+        const GlobalIndex64 n = resolver.points_along(a, key.level);
+        GlobalIndex64 v = static_cast<GlobalIndex64>(c[au]) * bs + local;
+        if (v < 0 || v >= n) {
+          if (config_.periodic[au]) v = ((v % n) + n) % n;
+          else outside = true;
+        }
+        idx[au] = v;
+      }
+      if (interior) continue;
+      const std::size_t at = s * block_volume_ + p;
+      plan.dest.push_back(static_cast<std::int64_t>(at));
+      if (outside) {
+        // Never read: derivatives use one-sided rows and prediction one-sided stencils there.
+        plan.kind[at] = static_cast<std::uint8_t>(GhostKind::kOutsideDomain);
+        plan.local_begin.push_back(static_cast<std::int32_t>(plan.local_src.size()));
+        plan.remote_begin.push_back(static_cast<std::int32_t>(remote_pending.size()));
+        continue;
+      }
+      const int source_level = forest_.leaves()[resolver.leaf_containing(key.level, idx)].level;
+      plan.kind[at] = static_cast<std::uint8_t>(source_level == key.level  ? GhostKind::kSameLevel
+                                                : source_level > key.level ? GhostKind::kFromFiner
+                                                                           : GhostKind::kFromCoarser);
+      terms.clear();
+      resolver.resolve(key.level, idx, 1.0, terms);
+      if (terms.size() > 1) std::sort(terms.begin(), terms.end(), [](const Term& x, const Term& y) {
+        return x.leaf != y.leaf ? x.leaf < y.leaf : x.point < y.point;
+      });
+      for (std::size_t t = 0; t < terms.size(); ++t) {
+        double w = terms[t].weight;
+        while (t + 1 < terms.size() && terms[t + 1].leaf == terms[t].leaf && terms[t + 1].point == terms[t].point)
+          w += terms[++t].weight;
+        if (w == 0.0) continue;
+        const std::size_t leaf = terms[t].leaf;
+        const int who = owner(leaf);
+        if (who == rank_) {
+          std::array<int, Dim> q{};
+          std::int64_t rest = terms[t].point;
+          for (int a = 0; a < Dim; ++a) {
+            q[static_cast<std::size_t>(a)] = static_cast<int>(rest % bs) + g;
+            rest /= bs;
+          }
+          plan.local_src.push_back(static_cast<std::int64_t>((leaf - first_leaf_) * block_volume_) + shape.index(q));
+          plan.local_w.push_back(w);
+        } else {
+          auto& list = wanted[static_cast<std::size_t>(who)];
+          const auto [it, added] = list.try_emplace({leaf, terms[t].point}, static_cast<int>(list.size()));
+          remote_pending.emplace_back(who, it->second);
+          plan.remote_w.push_back(w);
+        }
+      }
+      plan.local_begin.push_back(static_cast<std::int32_t>(plan.local_src.size()));
+      plan.remote_begin.push_back(static_cast<std::int32_t>(remote_pending.size()));
+    }
+  }
+
+  // Exchange the request lists once; the receivers translate them to local offsets.
+  const auto P = static_cast<std::size_t>(ranks_);
+  std::vector<int> recv_counts(P), send_counts(P), recv_first(P + 1, 0), send_first(P + 1, 0);
+  for (std::size_t r = 0; r < P; ++r) recv_counts[r] = static_cast<int>(wanted[r].size());
+  MPI_Alltoall(recv_counts.data(), 1, MPI_INT, send_counts.data(), 1, MPI_INT, comm_);
+  for (std::size_t r = 0; r < P; ++r) {
+    recv_first[r + 1] = recv_first[r] + recv_counts[r];
+    send_first[r + 1] = send_first[r] + send_counts[r];
+  }
+  std::vector<std::int64_t> request(2 * static_cast<std::size_t>(recv_first[P]));
+  for (std::size_t r = 0; r < P; ++r)
+    for (const auto& [what, position] : wanted[r]) {
+      const auto at = 2 * static_cast<std::size_t>(recv_first[r] + position);
+      request[at] = static_cast<std::int64_t>(what.first);
+      request[at + 1] = what.second;
+    }
+  std::vector<std::int64_t> asked(2 * static_cast<std::size_t>(send_first[P]));
+  std::vector<int> rc2(P), rf2(P), sc2(P), sf2(P);
+  for (std::size_t r = 0; r < P; ++r) {
+    rc2[r] = 2 * recv_counts[r];
+    rf2[r] = 2 * recv_first[r];
+    sc2[r] = 2 * send_counts[r];
+    sf2[r] = 2 * send_first[r];
+  }
+  MPI_Alltoallv(request.data(), rc2.data(), rf2.data(), MPI_INT64_T, asked.data(), sc2.data(), sf2.data(),
+                MPI_INT64_T, comm_);
+  for (std::size_t k = 0; k < asked.size(); k += 2) {
+    const auto leaf = static_cast<std::size_t>(asked[k]);
+    std::array<int, Dim> q{};
+    std::int64_t rest = asked[k + 1];
+    for (int a = 0; a < Dim; ++a) {
+      q[static_cast<std::size_t>(a)] = static_cast<int>(rest % bs) + g;
+      rest /= bs;
+    }
+    plan.send_src.push_back(static_cast<std::int64_t>((leaf - first_leaf_) * block_volume_) + shape.index(q));
+  }
+  for (std::size_t r = 0; r < P; ++r) {
+    if (recv_counts[r] > 0) {
+      plan.recv_rank.push_back(static_cast<int>(r));
+      plan.recv_first.push_back(recv_first[r]);
+      plan.recv_count.push_back(recv_counts[r]);
+    }
+    if (send_counts[r] > 0) {
+      plan.send_rank.push_back(static_cast<int>(r));
+      plan.send_first.push_back(send_first[r]);
+      plan.send_count.push_back(send_counts[r]);
+    }
+  }
+  const int F = fields();
+  plan.remote_src.reserve(remote_pending.size());
+  for (const auto& [who, position] : remote_pending)
+    plan.remote_src.push_back((recv_first[static_cast<std::size_t>(who)] + position) * F);
+  plan.send_buffer.assign(plan.send_src.size() * static_cast<std::size_t>(F), 0.0);
+  plan.recv_buffer.assign(static_cast<std::size_t>(recv_first[P]) * static_cast<std::size_t>(F), 0.0);
+  plan.requests.resize(plan.recv_rank.size() + plan.send_rank.size());
+}
+
+template <int Dim>
+void AdaptiveGrid<Dim>::fill_ghosts() {
+  GhostPlan& plan = *plan_;
+  const int F = fields();
+  const auto Fu = static_cast<std::size_t>(F);
+  std::size_t nreq = 0;
+  for (std::size_t k = 0; k < plan.recv_rank.size(); ++k)
+    MPI_Irecv(plan.recv_buffer.data() + static_cast<std::size_t>(plan.recv_first[k]) * Fu, plan.recv_count[k] * F,
+              MPI_DOUBLE, plan.recv_rank[k], 71, comm_, &plan.requests[nreq++]);
+  for (std::size_t k = 0; k < plan.send_src.size(); ++k)
+    for (std::size_t f = 0; f < Fu; ++f)
+      plan.send_buffer[k * Fu + f] = data_[f][static_cast<std::size_t>(plan.send_src[k])];
+  for (std::size_t k = 0; k < plan.send_rank.size(); ++k)
+    MPI_Isend(plan.send_buffer.data() + static_cast<std::size_t>(plan.send_first[k]) * Fu, plan.send_count[k] * F,
+              MPI_DOUBLE, plan.send_rank[k], 71, comm_, &plan.requests[nreq++]);
+  // Local contributions while the messages travel.
+  const std::size_t ghosts = plan.dest.size();
+  for (std::size_t f = 0; f < Fu; ++f) {
+    double* u = data_[f].data();
+    for (std::size_t k = 0; k < ghosts; ++k) {
+      double v = 0;
+      for (auto t = plan.local_begin[k]; t < plan.local_begin[k + 1]; ++t)
+        v += plan.local_w[static_cast<std::size_t>(t)] * u[plan.local_src[static_cast<std::size_t>(t)]];
+      u[plan.dest[k]] = v;
+    }
+  }
+  MPI_Waitall(static_cast<int>(nreq), plan.requests.data(), MPI_STATUSES_IGNORE);
+  if (plan.remote_src.empty()) return;
+  for (std::size_t f = 0; f < Fu; ++f) {
+    double* u = data_[f].data();
+    const double* received = plan.recv_buffer.data() + f;
+    for (std::size_t k = 0; k < ghosts; ++k)
+      for (auto t = plan.remote_begin[k]; t < plan.remote_begin[k + 1]; ++t)
+        u[plan.dest[k]] += plan.remote_w[static_cast<std::size_t>(t)] * received[plan.remote_src[static_cast<std::size_t>(t)]];
+  }
+}
+
+template <int Dim>
+GhostKind AdaptiveGrid<Dim>::ghost_kind(std::size_t slot, std::ptrdiff_t array_index) const {
+  return static_cast<GhostKind>(plan_->kind[slot * block_volume_ + static_cast<std::size_t>(array_index)]);
+}
+
+template <int Dim>
+std::array<std::int64_t, 4> AdaptiveGrid<Dim>::ghost_counts() const {
+  std::array<std::int64_t, 4> n{};
+  for (const auto d : plan_->dest) ++n[plan_->kind[static_cast<std::size_t>(d)]];
+  return n;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Wavelet coefficients.
+
+namespace {
+
+/// Per-axis prediction stencils of a block's own points from its even (level j-1) points,
+/// in array coordinates of the block (identity rows at even points).
+template <int Dim>
+void detail_stencils(const BlockKey<Dim>& key, const GridConfig<Dim>& config, int ghosts,
+                     std::array<std::array<AxisStencil, kMaxBlockSize>, Dim>& st) {
+  const auto c = key.coords();
+  const int bs = config.block_size;
+  for (int a = 0; a < Dim; ++a) {
+    const auto au = static_cast<std::size_t>(a);
+    const GlobalIndex64 start = static_cast<GlobalIndex64>(c[au]) * bs;
+    const GlobalIndex64 n = static_cast<GlobalIndex64>(config.roots[au]) * bs << key.level;
+    for (int i = 0; i < bs; ++i) {
+      AxisStencil& s = st[au][static_cast<std::size_t>(i)];
+      const GlobalIndex64 G = start + i;
+      if (G % 2 == 0) {
+        s.size = 1;
+        s.at[0] = i + ghosts;
+        s.w[0] = 1.0;
+        continue;
+      }
+      const LineStencil line = dd_line(config.order, G, n, config.periodic[au]);
+      s.size = line.size;
+      for (int m = 0; m < line.size; ++m) {
+        const auto mu = static_cast<std::size_t>(m);
+        s.at[mu] = static_cast<int>(line.even[mu] - start) + ghosts;
+        s.w[mu] = line.weight[mu];
+      }
+    }
+  }
+}
+
+/// Per-axis stencils giving child `child`'s points from its parent's array (parent at level j).
+template <int Dim>
+void child_stencils(const BlockKey<Dim>& parent, int child, const GridConfig<Dim>& config, int ghosts,
+                    std::array<std::array<AxisStencil, kMaxBlockSize>, Dim>& st) {
+  const auto c = parent.coords();
+  const int bs = config.block_size;
+  for (int a = 0; a < Dim; ++a) {
+    const auto au = static_cast<std::size_t>(a);
+    const GlobalIndex64 pstart = static_cast<GlobalIndex64>(c[au]) * bs;
+    const GlobalIndex64 n_fine = static_cast<GlobalIndex64>(config.roots[au]) * bs << (parent.level + 1);
+    const int offset = ((child >> a) & 1) * bs;
+    for (int i = 0; i < bs; ++i) {
+      AxisStencil& s = st[au][static_cast<std::size_t>(i)];
+      const GlobalIndex64 F = 2 * pstart + offset + i;
+      if (F % 2 == 0) {
+        s.size = 1;
+        s.at[0] = static_cast<int>(F / 2 - pstart) + ghosts;
+        s.w[0] = 1.0;
+        continue;
+      }
+      const LineStencil line = dd_line(config.order, F, n_fine, config.periodic[au]);
+      s.size = line.size;
+      for (int m = 0; m < line.size; ++m) {
+        const auto mu = static_cast<std::size_t>(m);
+        s.at[mu] = static_cast<int>(line.even[mu] / 2 - pstart) + ghosts;
+        s.w[mu] = line.weight[mu];
+      }
+    }
+  }
+}
+
+/// Walks the interior points of a block in interior order with their array index.
+template <int Dim, class F>
+void for_each_interior(int bs, int ghosts, const ArrayShape<Dim>& shape, F&& f) {
+  std::array<int, Dim> i{};
+  std::size_t p = 0;
+  while (true) {
+    std::array<int, Dim> q{};
+    for (int a = 0; a < Dim; ++a) q[static_cast<std::size_t>(a)] = i[static_cast<std::size_t>(a)] + ghosts;
+    f(p++, i, shape.index(q));
+    int a = 0;
+    for (; a < Dim; ++a) {
+      if (++i[static_cast<std::size_t>(a)] < bs) break;
+      i[static_cast<std::size_t>(a)] = 0;
+    }
+    if (a == Dim) break;
+  }
+}
+
+}  // namespace
+
+template <int Dim>
+void AdaptiveGrid<Dim>::block_details(int field, std::size_t slot, std::span<double> out) const {
+  std::array<std::array<AxisStencil, kMaxBlockSize>, Dim> st;
+  detail_stencils<Dim>(local_keys_[slot], config_, layout_.ghosts, st);
+  const auto shape = layout_.shape();
+  std::array<std::ptrdiff_t, Dim> stride{};
+  for (int a = 0; a < Dim; ++a) stride[static_cast<std::size_t>(a)] = shape.stride(a);
+  const double* u = block(field, slot).data();
+  // Offsets in the stencils are absolute array coordinates, so the sum starts at u itself.
+  for_each_interior<Dim>(config_.block_size, layout_.ghosts, shape, [&](std::size_t p, const Index& i, std::ptrdiff_t at) {
+    std::array<const AxisStencil*, Dim> row{};
+    bool all_even = true;
+    for (int a = 0; a < Dim; ++a) {
+      const auto au = static_cast<std::size_t>(a);
+      row[au] = &st[au][static_cast<std::size_t>(i[au])];
+      all_even = all_even && row[au]->size == 1;
+    }
+    out[p] = all_even ? 0.0 : u[at] - tensor_sum<Dim>(u, stride, row);
+  });
+}
+
+template <int Dim>
+double AdaptiveGrid<Dim>::block_detail_max(int field, std::size_t slot) const {
+  scratch_.resize(interior_points_);  // allocates once
+  block_details(field, slot, scratch_);
+  const std::span<const double> d(scratch_);
+  double m = 0;
+  for (double v : d) m = std::max(m, std::abs(v));
+  return m;
+}
+
+template <int Dim>
+std::vector<double> AdaptiveGrid<Dim>::field_scales(const ThresholdConfig& th) const {
+  const auto F = static_cast<std::size_t>(fields());
+  std::vector<double> scale(F, 1.0);
+  if (th.normalisation == Normalisation::kAbsolute) return scale;
+  std::vector<double> local(F, 0.0), global(F, 0.0);
+  const auto shape = layout_.shape();
+  for (std::size_t f = 0; f < F; ++f)
+    for (std::size_t s = 0; s < local_blocks(); ++s) {
+      const double* u = data_[f].data() + s * block_volume_;
+      for_each_interior<Dim>(config_.block_size, layout_.ghosts, shape,
+                             [&](std::size_t, const Index&, std::ptrdiff_t at) { local[f] = std::max(local[f], std::abs(u[at])); });
+    }
+  MPI_Allreduce(local.data(), global.data(), static_cast<int>(F), MPI_DOUBLE, MPI_MAX, comm_);
+  for (std::size_t f = 0; f < F; ++f) {
+    double m = global[f];
+    if (!th.groups.empty())
+      for (std::size_t o = 0; o < F; ++o)
+        if (th.groups[o] == th.groups[f]) m = std::max(m, global[o]);
+    scale[f] = m > 0 ? m : 1.0;  // a zero field has no significant coefficients either way
+  }
+  return scale;
+}
+
+template <int Dim>
+std::int64_t AdaptiveGrid<Dim>::significant_points(const ThresholdConfig& th) const {
+  const auto scale = field_scales(th);
+  std::vector<double> d(interior_points_);
+  std::vector<char> significant(interior_points_);
+  std::int64_t count = 0;
+  for (std::size_t s = 0; s < local_blocks(); ++s) {
+    std::fill(significant.begin(), significant.end(), 0);
+    for (int f = 0; f < fields(); ++f) {
+      if (!th.groups.empty() && th.groups[static_cast<std::size_t>(f)] < 0) continue;
+      block_details(f, s, d);
+      for (std::size_t p = 0; p < d.size(); ++p)
+        if (std::abs(d[p]) > th.epsilon * scale[static_cast<std::size_t>(f)]) significant[p] = 1;
+    }
+    count += std::count(significant.begin(), significant.end(), 1);
+  }
+  std::int64_t total = 0;
+  MPI_Allreduce(&count, &total, 1, MPI_INT64_T, MPI_SUM, comm_);
+  return total;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Adaptation.
+
+template <int Dim>
+AdaptCounts AdaptiveGrid<Dim>::adapt(const ThresholdConfig& th, AdaptPass pass, const ForcedRegion<Dim>& forced) {
+  // 1. Tag: significance of this rank's blocks, gathered so every rank sees every leaf.
+  const auto scale = field_scales(th);
+  std::vector<char> local_sig(local_blocks(), 0);
+  for (std::size_t s = 0; s < local_blocks(); ++s)
+    for (int f = 0; f < fields() && !local_sig[s]; ++f) {
+      if (!th.groups.empty() && th.groups[static_cast<std::size_t>(f)] < 0) continue;
+      local_sig[s] = block_detail_max(f, s) > th.epsilon * scale[static_cast<std::size_t>(f)];
+    }
+  const std::size_t n = forest_.size();
+  std::vector<char> sig(n, 0);
+  std::vector<int> counts(static_cast<std::size_t>(ranks_)), firsts(static_cast<std::size_t>(ranks_));
+  for (std::size_t r = 0; r < counts.size(); ++r) {
+    counts[r] = static_cast<int>(offsets_[r + 1] - offsets_[r]);
+    firsts[r] = static_cast<int>(offsets_[r]);
+  }
+  MPI_Allgatherv(local_sig.data(), static_cast<int>(local_sig.size()), MPI_CHAR, sig.data(), counts.data(),
+                 firsts.data(), MPI_CHAR, comm_);
+
+  const auto leaves = forest_.leaves();
+  std::vector<char> force(n, 0), near_sig(n, 0);
+  if (forced)
+    for (std::size_t l = 0; l < n; ++l) {
+      const Point lo = origin(leaves[l]), h = spacing(leaves[l].level);
+      Point hi{};
+      for (int a = 0; a < Dim; ++a)
+        hi[static_cast<std::size_t>(a)] = lo[static_cast<std::size_t>(a)] + config_.block_size * h[static_cast<std::size_t>(a)];
+      force[l] = forced(lo, hi);
+    }
+  std::vector<Neighbour<Dim>> around;
+  if (th.adjacent_blocks)
+    for (std::size_t l = 0; l < n; ++l) {
+      if (!sig[l]) continue;
+      forest_.neighbours(leaves[l], around);
+      for (const auto& nb : around)
+        if (pass == AdaptPass::kCoarsen || nb.level_difference <= 0) near_sig[*forest_.find(nb.key)] = 1;
+    }
+  std::vector<AdaptTag> tags(n, AdaptTag::kKeep);
+  for (std::size_t l = 0; l < n; ++l) {
+    if (pass == AdaptPass::kRefine) {
+      if (sig[l] || force[l] || near_sig[l]) tags[l] = AdaptTag::kRefine;
+    } else if (!sig[l] && !force[l] && !near_sig[l] && leaves[l].level > config_.min_level) {
+      tags[l] = AdaptTag::kCoarsen;
+    }
+  }
+  // 2-6. Refine, coarsen, balance, repartition, ghosts.
+  return adapt_with_tags(tags);
+}
+
+template <int Dim>
+AdaptCounts AdaptiveGrid<Dim>::adapt_with_tags(std::span<const AdaptTag> tags) {
+  BlockForest<Dim> next = forest_;
+  const AdaptCounts counts = next.adapt(tags);  // refine, coarsen, 2:1 balance
+  if (counts.refined == 0 && counts.coarsened == 0) return counts;  // same blocks, same ghosts
+  forest_ = std::move(next);
+  const std::vector<Key> old_keys = local_keys_;
+  const std::vector<std::vector<double>> old_data = std::move(data_);
+  refresh_partition();
+  allocate_local();
+
+  // New blocks from the old ones on the old owner: unchanged (copy), refined (children by
+  // prediction from the ghosted parent) or coarsened (each child injects its quarter of the
+  // parent). Messages: header (leaf, part), then fields x values.
+  const int bs = config_.block_size, g = layout_.ghosts;
+  const int F = fields();
+  const auto shape = layout_.shape();
+  std::array<std::ptrdiff_t, Dim> stride{};
+  for (int a = 0; a < Dim; ++a) stride[static_cast<std::size_t>(a)] = shape.stride(a);
+  const auto P = static_cast<std::size_t>(ranks_);
+  std::vector<std::vector<std::int64_t>> head(P);
+  std::vector<std::vector<double>> body(P);
+  std::array<std::array<AxisStencil, kMaxBlockSize>, Dim> st;
+  for (std::size_t s = 0; s < old_keys.size(); ++s) {
+    const Key key = old_keys[s];
+    if (const auto leaf = forest_.find(key)) {
+      auto& out = body[static_cast<std::size_t>(owner(*leaf))];
+      head[static_cast<std::size_t>(owner(*leaf))].insert(head[static_cast<std::size_t>(owner(*leaf))].end(),
+                                                          {static_cast<std::int64_t>(*leaf), -1});
+      for (int f = 0; f < F; ++f) {
+        const double* u = old_data[static_cast<std::size_t>(f)].data() + s * block_volume_;
+        for_each_interior<Dim>(bs, g, shape, [&](std::size_t, const Index&, std::ptrdiff_t at) { out.push_back(u[at]); });
+      }
+    } else if (forest_.find(key.child(0))) {
+      for (int k = 0; k < Key::kChildren; ++k) {
+        const std::size_t child_leaf = *forest_.find(key.child(k));
+        const auto who = static_cast<std::size_t>(owner(child_leaf));
+        head[who].insert(head[who].end(), {static_cast<std::int64_t>(child_leaf), -1});
+        child_stencils<Dim>(key, k, config_, g, st);
+        for (int f = 0; f < F; ++f) {
+          const double* u = old_data[static_cast<std::size_t>(f)].data() + s * block_volume_;
+          for_each_interior<Dim>(bs, g, shape, [&](std::size_t, const Index& i, std::ptrdiff_t) {
+            std::array<const AxisStencil*, Dim> row{};
+            for (int a = 0; a < Dim; ++a) row[static_cast<std::size_t>(a)] = &st[static_cast<std::size_t>(a)][static_cast<std::size_t>(i[static_cast<std::size_t>(a)])];
+            body[who].push_back(tensor_sum<Dim>(u, stride, row));
+          });
+        }
+      }
+    } else {
+      const auto parent = forest_.find(key.parent());
+      if (!parent) throw std::logic_error("AdaptiveGrid: a block changed by more than one level");
+      const auto who = static_cast<std::size_t>(owner(*parent));
+      head[who].insert(head[who].end(), {static_cast<std::int64_t>(*parent), key.child_index()});
+      for (int f = 0; f < F; ++f) {
+        const double* u = old_data[static_cast<std::size_t>(f)].data() + s * block_volume_;
+        // The parent's points in this child's region are the child's all-even points.
+        for_each_interior<Dim>(bs / 2, 0, ArrayShape<Dim>{}, [&](std::size_t, const Index& i, std::ptrdiff_t) {
+          Index q{};
+          for (int a = 0; a < Dim; ++a) q[static_cast<std::size_t>(a)] = 2 * i[static_cast<std::size_t>(a)] + g;
+          body[who].push_back(u[shape.index(q)]);
+        });
+      }
+    }
+  }
+  std::vector<int> hs(P), hr(P), bsend(P), brecv(P), hsf(P + 1, 0), hrf(P + 1, 0), bsf(P + 1, 0), brf(P + 1, 0);
+  for (std::size_t r = 0; r < P; ++r) {
+    hs[r] = static_cast<int>(head[r].size());
+    bsend[r] = static_cast<int>(body[r].size());
+  }
+  MPI_Alltoall(hs.data(), 1, MPI_INT, hr.data(), 1, MPI_INT, comm_);
+  MPI_Alltoall(bsend.data(), 1, MPI_INT, brecv.data(), 1, MPI_INT, comm_);
+  for (std::size_t r = 0; r < P; ++r) {
+    hsf[r + 1] = hsf[r] + hs[r];
+    hrf[r + 1] = hrf[r] + hr[r];
+    bsf[r + 1] = bsf[r] + bsend[r];
+    brf[r + 1] = brf[r] + brecv[r];
+  }
+  std::vector<std::int64_t> hflat, hin(static_cast<std::size_t>(hrf[P]));
+  std::vector<double> bflat, bin(static_cast<std::size_t>(brf[P]));
+  for (std::size_t r = 0; r < P; ++r) {
+    hflat.insert(hflat.end(), head[r].begin(), head[r].end());
+    bflat.insert(bflat.end(), body[r].begin(), body[r].end());
+  }
+  MPI_Alltoallv(hflat.data(), hs.data(), hsf.data(), MPI_INT64_T, hin.data(), hr.data(), hrf.data(), MPI_INT64_T, comm_);
+  MPI_Alltoallv(bflat.data(), bsend.data(), bsf.data(), MPI_DOUBLE, bin.data(), brecv.data(), brf.data(), MPI_DOUBLE, comm_);
+
+  std::size_t at_body = 0;
+  for (std::size_t k = 0; k < hin.size(); k += 2) {
+    const auto slot = static_cast<std::size_t>(hin[k]) - first_leaf_;
+    const auto part = static_cast<int>(hin[k + 1]);
+    for (int f = 0; f < F; ++f) {
+      double* u = data_[static_cast<std::size_t>(f)].data() + slot * block_volume_;
+      if (part < 0) {
+        for_each_interior<Dim>(bs, g, shape, [&](std::size_t, const Index&, std::ptrdiff_t at) { u[at] = bin[at_body++]; });
+      } else {
+        for_each_interior<Dim>(bs / 2, 0, ArrayShape<Dim>{}, [&](std::size_t, const Index& i, std::ptrdiff_t) {
+          Index q{};
+          for (int a = 0; a < Dim; ++a)
+            q[static_cast<std::size_t>(a)] = i[static_cast<std::size_t>(a)] + ((part >> a) & 1) * bs / 2 + g;
+          u[shape.index(q)] = bin[at_body++];
+        });
+      }
+    }
+  }
+  build_ghost_plan();
+  fill_ghosts();
+  return counts;
+}
+
+template <int Dim>
+void AdaptiveGrid<Dim>::refine_to_uniform() {
+  for (int l = 0; l <= config_.max_level; ++l) {
+    std::vector<AdaptTag> all(forest_.size(), AdaptTag::kRefine);
+    if (adapt_with_tags(all).refined == 0) break;
+  }
+}
+
+template <int Dim>
+void AdaptiveGrid<Dim>::rebuild(std::span<const Key> target) {
+  std::unordered_set<Key, BlockKeyHash<Dim>> ancestors;
+  int deepest = 0;
+  for (const Key& k : target) {
+    deepest = std::max(deepest, k.level);
+    for (Key a = k; a.level > 0;) {
+      a = a.parent();
+      if (!ancestors.insert(a).second) break;
+    }
+  }
+  ForestConfig<Dim> fc = forest_.config();
+  forest_ = BlockForest<Dim>(fc);
+  // Refining the ancestors level by level reproduces a balanced target without extra blocks.
+  for (int l = 0; l < deepest; ++l) {
+    std::vector<AdaptTag> tags(forest_.size(), AdaptTag::kKeep);
+    for (std::size_t i = 0; i < forest_.size(); ++i)
+      if (ancestors.contains(forest_.leaves()[i])) tags[i] = AdaptTag::kRefine;
+    forest_.adapt(tags);
+  }
+  if (forest_.size() != target.size() || !std::equal(target.begin(), target.end(), forest_.leaves().begin()))
+    throw std::invalid_argument("AdaptiveGrid::rebuild: the keys are not a balanced forest in curve order");
+  refresh_partition();
+  allocate_local();
+  build_ghost_plan();
+}
+
+// ---------------------------------------------------------------------------------------------
+// Operators.
+
+template <int Dim>
+const DerivativeOperator<Dim>& AdaptiveGrid<Dim>::derivative_operator(std::size_t slot) const {
+  const Key& key = local_keys_[slot];
+  DerivativeConfig dc;
+  dc.accuracy = config_.derivative_accuracy;
+  int code = key.level;
+  for (int a = 0; a < Dim; ++a) {
+    const auto au = static_cast<std::size_t>(a);
+    dc.one_sided[au][0] = !config_.periodic[au] && block_touches_low(key, a);
+    dc.one_sided[au][1] = !config_.periodic[au] && block_touches_high(key, a);
+    code = code * 4 + (dc.one_sided[au][0] ? 1 : 0) + (dc.one_sided[au][1] ? 2 : 0);
+  }
+  auto& op = operators_[code];
+  if (!op) op = std::make_unique<DerivativeOperator<Dim>>(layout_, spacing(key.level), dc);
+  return *op;
+}
+
+template <int Dim>
+void AdaptiveGrid<Dim>::first_derivative(int field, int axis, int out_field) {
+  for (std::size_t s = 0; s < local_blocks(); ++s)
+    derivative_operator(s).first(block(field, s), block(out_field, s), axis);
+}
+
+template <int Dim>
+void AdaptiveGrid<Dim>::second_derivative(int field, int axis, int out_field) {
+  for (std::size_t s = 0; s < local_blocks(); ++s)
+    derivative_operator(s).second(block(field, s), block(out_field, s), axis);
+}
+
+template <int Dim>
+std::size_t AdaptiveGrid<Dim>::memory_bytes() const {
+  std::size_t bytes = 0;
+  for (const auto& f : data_) bytes += f.size() * sizeof(double);
+  if (plan_)
+    bytes += plan_->dest.size() * 8 + plan_->local_src.size() * 16 + plan_->remote_src.size() * 12 +
+             plan_->kind.size() + (plan_->send_buffer.size() + plan_->recv_buffer.size()) * 8;
+  return bytes;
+}
+
+template class AdaptiveGrid<1>;
+template class AdaptiveGrid<2>;
+template class AdaptiveGrid<3>;
+
+}  // namespace grainwave::wavelet

@@ -1,0 +1,249 @@
+#pragma once
+// Wavelet-adaptive multiresolution grid with field data: the adaptive wavelet collocation method
+// (AWCM, Vasilyev & Bowman 2000; Goetsch 2015, 002 §2.2.2) organised in blocks (design.md "The
+// adaptive grid").
+//
+// Grid. Levels Jmin..Jmax; a block at level j holds Bs^Dim collocation points with spacing
+// h_j = (hi - lo) / (roots * Bs * 2^j) per axis, non-redundant: block (level j, coords c) holds
+// the level-j global indices c*Bs .. c*Bs + Bs - 1, at x = lo + index * h_j. Blocks are keyed by
+// (level, Morton) in a BlockForest whose light metadata is replicated on every rank; the field
+// data of a block lives only on its owner, the ranks owning contiguous chunks of the forest's
+// space-filling curve.
+//
+// Multiresolution. The points of level j-1 are the level-j points whose indices are all even.
+// The wavelet coefficient of a level-j point is
+//     d = u - P u_{j-1},
+// P the tensor-product Deslauriers-Dubuc interpolation (order 4 or 6, one-sided near
+// non-periodic domain edges) along the axes where the index is odd; d = 0 for all-even points
+// (they belong to level j-1). The value at any (level, index) of the domain is defined from the
+// leaves alone: a leaf at that level holds it, a finer leaf holds it by injection (its point
+// coincides), a coarser leaf predicts it by P. Ghost points are filled by exactly this rule, so
+// reconstruction is perfect: refining every block by P reproduces the sampled field up to the
+// discarded (insignificant) coefficients.
+//
+// Adaptation (the cycle is written once, in adapt()): tag -> refine -> coarsen -> 2:1 balance ->
+// repartition -> ghost rebuild. Significance: |d| > epsilon * scale(field), scale 1 (absolute)
+// or the global max |u| of the field or its group (normalised L-infinity). A block holding a
+// significant point, or inside the caller's forced region, is refined (refine pass: the adjacent
+// zone in scale); so are, with `adjacent_blocks`, its same-or-coarser neighbours (the adjacent
+// zone in space). A block whose points are all insignificant, that no significant block
+// touches and that lies outside the forced region, is coarsened (coarsen pass). New points are
+// filled by P, removed points restricted by injection.
+//
+// Storage. Each field is one array of local blocks; a block is an ArrayShape of Bs + 2g points
+// per axis (g ghost layers, by default the least that prediction and derivatives read:
+// max(order - 1, accuracy / 2)).
+// Ghost exchange across ranks uses non-blocking point-to-point messages with a plan built once
+// per adaptation.
+#include <mpi.h>
+
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "wavelet/BlockForest.hpp"
+#include "wavelet/Stencils.hpp"
+
+namespace grainwave::wavelet {
+
+inline constexpr int kMaxBlockSize = 32;
+
+template <int Dim>
+struct GridConfig {
+  std::array<double, Dim> lo{}, hi{};
+  std::array<int, Dim> roots{};      ///< root blocks per axis
+  std::array<bool, Dim> periodic{};
+  int block_size = 8;                ///< Bs: collocation points per block and axis (even, 8..32)
+  int min_level = 0;                 ///< Jmin: the grid never coarsens below it
+  int max_level = 4;                 ///< Jmax
+  int order = 4;                     ///< Deslauriers-Dubuc interpolation order: 4 or 6
+  int ghosts = 0;                    ///< ghost layers; 0 takes the least the stencils need
+  int derivative_accuracy = 4;       ///< finite-difference order of the derivative operators
+  CurveOrder curve = CurveOrder::kHilbert;
+  std::vector<std::string> fields;   ///< named fields held at every point
+};
+
+enum class Normalisation { kAbsolute, kLinf };
+
+struct ThresholdConfig {
+  double epsilon = 1e-3;
+  Normalisation normalisation = Normalisation::kLinf;
+  /// Field -> group; a group shares one scale (the max over its fields). Empty: every field is
+  /// its own group. Fields in group -1 do not take part in the significance test.
+  std::vector<int> groups;
+  bool adjacent_blocks = true;  ///< adjacent zone in space: neighbours of significant blocks
+};
+
+/// Region whose blocks must sit at max_level (e.g. a penalization interface): called with the
+/// lower and upper corners of a block.
+template <int Dim>
+using ForcedRegion = std::function<bool(const std::array<double, Dim>&, const std::array<double, Dim>&)>;
+
+enum class AdaptPass { kRefine, kCoarsen };
+
+/// How a ghost point got its value (for diagnostics and tests).
+enum class GhostKind : std::uint8_t { kSameLevel, kFromFiner, kFromCoarser, kOutsideDomain };
+
+template <int Dim>
+class AdaptiveGrid {
+ public:
+  using Key = BlockKey<Dim>;
+  using Index = std::array<int, Dim>;
+  using Point = std::array<double, Dim>;
+
+  /// A uniform grid at min_level; field values zero, ghosts built.
+  explicit AdaptiveGrid(GridConfig<Dim> config, MPI_Comm comm = MPI_COMM_WORLD);
+  AdaptiveGrid(const AdaptiveGrid&);
+  AdaptiveGrid& operator=(const AdaptiveGrid&) = delete;
+  ~AdaptiveGrid();
+
+  // --- metadata (replicated) ---
+  const GridConfig<Dim>& config() const { return config_; }
+  const BlockForest<Dim>& forest() const { return forest_; }
+  std::size_t global_blocks() const { return forest_.size(); }
+  int owner(std::size_t leaf) const;
+  BlockLayout<Dim> layout() const { return layout_; }
+  std::size_t points_per_block() const { return interior_points_; }
+  Point spacing(int level) const;
+  Point origin(const Key& key) const;  ///< position of the block's interior point 0
+  /// Points of the uniform grid at max_level (for compression ratios).
+  double uniform_points() const;
+
+  // --- local blocks ---
+  std::size_t local_blocks() const { return local_keys_.size(); }
+  std::size_t first_leaf() const { return first_leaf_; }  ///< leaf index of local slot 0
+  const Key& key(std::size_t slot) const { return local_keys_[slot]; }
+  /// Position of point i of a block (i may step into the ghosts).
+  Point position(std::size_t slot, const Index& i) const;
+  int fields() const { return static_cast<int>(config_.fields.size()); }
+  int field_index(const std::string& name) const;  ///< -1 when absent
+  std::span<double> block(int field, std::size_t slot);
+  std::span<const double> block(int field, std::size_t slot) const;
+
+  /// Sets every field at every interior point of every local block: f(x, values) with values
+  /// of size fields(). Ghosts are left stale: call fill_ghosts().
+  template <class F>
+  void sample(F&& f);
+
+  // --- ghosts ---
+  void fill_ghosts();
+  /// Kind of ghost point `array_index` of a local block (interior points are kSameLevel).
+  GhostKind ghost_kind(std::size_t slot, std::ptrdiff_t array_index) const;
+  /// Number of ghost points of each kind over local blocks (index: GhostKind).
+  std::array<std::int64_t, 4> ghost_counts() const;
+
+  // --- wavelet coefficients ---
+  /// Largest |d| of a field over one local block's points (ghosts must be filled).
+  double block_detail_max(int field, std::size_t slot) const;
+  /// Writes d (interior points, 0 at all-even ones) of a field of a block into `out`
+  /// (Bs^Dim values, interior order).
+  void block_details(int field, std::size_t slot, std::span<double> out) const;
+  /// Global significance scale per field (1 for absolute, max |u| of the field's group).
+  std::vector<double> field_scales(const ThresholdConfig& threshold) const;
+  /// Global number of significant coefficients (ghosts must be filled).
+  std::int64_t significant_points(const ThresholdConfig& threshold) const;
+
+  // --- adaptation ---
+  /// One adaptation pass: tag by significance (and the forced region), then adapt_with_tags.
+  /// Ghosts must be filled on entry and are filled on return. Returns the global counts.
+  AdaptCounts adapt(const ThresholdConfig& threshold, AdaptPass pass,
+                    const ForcedRegion<Dim>& forced = {});
+  /// Refine -> coarsen -> balance (BlockForest::adapt) with one tag per global leaf (identical
+  /// on all ranks), new points by interpolation / injection, repartition, ghost rebuild.
+  AdaptCounts adapt_with_tags(std::span<const AdaptTag> tags);
+  /// Refine every block until the grid is uniform at max_level (by interpolation).
+  void refine_to_uniform();
+  /// Adapts to a function given pointwise (initial conditions): refine passes sampling `f` until
+  /// nothing refines, then coarsen passes until nothing coarsens. Returns the passes made.
+  template <class F>
+  int adapt_to_function(const ThresholdConfig& threshold, F&& f, const ForcedRegion<Dim>& forced = {});
+
+  // --- operators (ghosts must be filled) ---
+  void first_derivative(int field, int axis, int out_field);
+  void second_derivative(int field, int axis, int out_field);
+  const DerivativeOperator<Dim>& derivative_operator(std::size_t slot) const;
+
+  /// Replaces the grid by a given leaf set (sorted along the curve, as written by checkpoints)
+  /// with zero fields; throws std::invalid_argument if the keys are not a balanced forest.
+  void rebuild(std::span<const Key> leaves);
+
+  std::size_t memory_bytes() const;
+
+ private:
+  struct GhostPlan;
+  void allocate_local();
+  void build_ghost_plan();
+  void refresh_partition();
+  bool block_touches_low(const Key& key, int axis) const;
+  bool block_touches_high(const Key& key, int axis) const;
+
+  GridConfig<Dim> config_;
+  MPI_Comm comm_;
+  int rank_ = 0, ranks_ = 1;
+  BlockForest<Dim> forest_;
+  std::vector<std::size_t> offsets_;  // partition: rank r owns leaves [offsets_[r], offsets_[r+1])
+  std::size_t first_leaf_ = 0;
+  std::vector<Key> local_keys_;
+  BlockLayout<Dim> layout_;
+  std::size_t interior_points_ = 0, block_volume_ = 0;
+  std::vector<std::vector<double>> data_;  // per field: local blocks x block_volume_
+  std::unique_ptr<GhostPlan> plan_;
+  mutable std::map<int, std::unique_ptr<DerivativeOperator<Dim>>> operators_;
+  mutable std::vector<double> scratch_;  // one block of coefficients
+};
+
+template <int Dim>
+template <class F>
+void AdaptiveGrid<Dim>::sample(F&& f) {
+  std::vector<double> values(static_cast<std::size_t>(fields()));
+  const auto shape = layout_.shape();
+  for (std::size_t s = 0; s < local_blocks(); ++s) {
+    const Point x0 = origin(local_keys_[s]);
+    const Point h = spacing(local_keys_[s].level);
+    for (std::size_t p = 0; p < interior_points_; ++p) {
+      Index i{};
+      std::size_t rest = p;
+      Point x{};
+      for (int a = 0; a < Dim; ++a) {
+        const auto au = static_cast<std::size_t>(a);
+        i[au] = static_cast<int>(rest % static_cast<std::size_t>(config_.block_size)) + layout_.ghosts;
+        rest /= static_cast<std::size_t>(config_.block_size);
+        x[au] = x0[au] + (i[au] - layout_.ghosts) * h[au];
+      }
+      f(x, std::span<double>(values));
+      const auto at = static_cast<std::size_t>(shape.index(i)) + s * block_volume_;
+      for (std::size_t k = 0; k < values.size(); ++k) data_[k][at] = values[k];
+    }
+  }
+}
+
+template <int Dim>
+template <class F>
+int AdaptiveGrid<Dim>::adapt_to_function(const ThresholdConfig& threshold, F&& f,
+                                         const ForcedRegion<Dim>& forced) {
+  sample(f);
+  fill_ghosts();
+  int passes = 0;
+  for (const AdaptPass pass : {AdaptPass::kRefine, AdaptPass::kCoarsen}) {
+    // Each refine pass adds at most one level everywhere, each coarsen pass removes at most one.
+    for (int k = 0; k <= config_.max_level - config_.min_level + 1; ++k) {
+      const AdaptCounts counts = adapt(threshold, pass, forced);
+      ++passes;
+      sample(f);
+      fill_ghosts();
+      if (counts.refined == 0 && counts.coarsened == 0) break;
+    }
+  }
+  return passes;
+}
+
+extern template class AdaptiveGrid<1>;
+extern template class AdaptiveGrid<2>;
+extern template class AdaptiveGrid<3>;
+
+}  // namespace grainwave::wavelet
