@@ -41,8 +41,8 @@ struct InitialParticle {
 
 void ParticleSystem::declare(SceneSchema& schema) {
   auto& s = schema.section("particles",
-                           "Particles in a box: free flight under body forces; builds the "
-                           "particle system.");
+                           "Particles in a box: free flight under body forces, colliding as "
+                           "hard spheres; builds the particle system.");
   s.integer("dimension", 3, "2: disks in the x-y plane (unit depth); 3: spheres").in_range(2, 3);
   s.reals("box_lo", std::nullopt, "lower corner of the box").of_length(3);
   s.reals("box_hi", std::nullopt, "upper corner of the box").of_length(3);
