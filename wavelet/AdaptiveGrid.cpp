@@ -450,10 +450,12 @@ void AdaptiveGrid<Dim>::build_ghost_plan() {
         const int who = owner(leaf);
         if (who == rank_) {
           std::array<int, Dim> q{};
-          std::int64_t rest = terms[t].point;
+          // 32-bit division: a block has at most 32^3 points (64-bit idiv dominated here).
+          auto rest = static_cast<std::uint32_t>(terms[t].point);
+          const auto ubs = static_cast<std::uint32_t>(bs);
           for (int a = 0; a < Dim; ++a) {
-            q[static_cast<std::size_t>(a)] = static_cast<int>(rest % bs) + g;
-            rest /= bs;
+            q[static_cast<std::size_t>(a)] = static_cast<int>(rest % ubs) + g;
+            rest /= ubs;
           }
           plan.local_src.push_back(static_cast<std::int64_t>((leaf - first_leaf_) * block_volume_) + shape.index(q));
           plan.local_w.push_back(w);
