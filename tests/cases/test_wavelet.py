@@ -49,6 +49,10 @@ def cases_run():
                f"{name}: output holds every block ({data['u'].shape})")
     # The 1D front crosses bounded edges with one-sided stencils; the front keeps several levels.
     s = summary(os.path.join(os.environ["GRAINWAVE_WORK"], "wavelet_front_1d"))
+    # du/dx on every active point (4th-order stencils, predicted ghosts at level jumps) against
+    # the exact derivative, whose peak is 1/(2w) = 50 for w = 0.01: the front spans ~20 points.
+    expect(s["metrics"]["derivative_error"] < 1e-3 * 50,
+           f"1D du/dx error {s['metrics']['derivative_error']:.2e} < 1e-3 of its peak")
     expect(s["counts"]["level_max"] - s["counts"]["level_min"] >= 3,
            f"1D front spans levels {s['counts']['level_min']}..{s['counts']['level_max']}")
 
