@@ -1,6 +1,6 @@
 // Throughput of wavelet/: lifting forward + inverse transform and the 4th-order derivative
-// operator on single blocks (points per second), and on the adaptive grid (one rank) the ghost
-// fill and the adapt cycle (tag -> refine/coarsen -> balance -> repartition -> ghost plan),
+// operator on single blocks (points per second), and on the adaptive grid (one rank) the
+// wavelet coefficients of all blocks, the ghost fill and the adapt cycle (tag -> refine/coarsen -> balance -> repartition -> ghost plan),
 // reported as blocks per second (counter `blocks_per_s`; its inverse is the time per block), in
 // 2D and 3D.
 #include "wavelet/AdaptiveGrid.hpp"
@@ -103,6 +103,22 @@ gw::AdaptiveGrid<Dim> disc_grid(int max_level) {
   return grid;
 }
 
+// The grid's forward transform: the wavelet coefficients of every point of every block (ghosts
+// filled), as the significance test computes them.
+template <int Dim>
+void BM_BlockCoefficients(benchmark::State& state) {
+  auto grid = disc_grid<Dim>(static_cast<int>(state.range(0)));
+  std::vector<double> d(grid.points_per_block());
+  for (auto _ : state) {
+    for (std::size_t s = 0; s < grid.local_blocks(); ++s) grid.block_details(0, s, d);
+    benchmark::DoNotOptimize(d.data());
+  }
+  state.counters["blocks"] = static_cast<double>(grid.global_blocks());
+  state.counters["blocks_per_s"] = benchmark::Counter(static_cast<double>(grid.global_blocks()),
+                                                      benchmark::Counter::kIsIterationInvariantRate);
+  state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(grid.global_blocks() * grid.points_per_block()));
+}
+
 template <int Dim>
 void BM_GhostFill(benchmark::State& state) {
   auto grid = disc_grid<Dim>(static_cast<int>(state.range(0)));
@@ -147,6 +163,8 @@ void BM_AdaptCycle(benchmark::State& state) {
 
 }  // namespace
 
+BENCHMARK(BM_BlockCoefficients<2>)->ArgName("max_level")->Arg(4)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_BlockCoefficients<3>)->ArgName("max_level")->Arg(4)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_GhostFill<2>)->ArgName("max_level")->Arg(4)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_GhostFill<3>)->ArgName("max_level")->Arg(4)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_AdaptCycle<2>)->ArgName("max_level")->Arg(4)->Unit(benchmark::kMillisecond);

@@ -357,3 +357,16 @@ TEST(AdaptiveGrid, RebuildFromLeavesReproducesTheForest) {
   std::vector<gw::BlockKey<2>> broken(leaves.begin() + 1, leaves.end());
   EXPECT_THROW(other.rebuild(broken), std::invalid_argument);
 }
+
+// One root block on a periodic axis is its own neighbour: its ghosts are its own wrapped points.
+TEST(AdaptiveGrid, SingleBlockPeriodicGhostsWrap) {
+  gw::GridConfig<2> c = unit_box<2>(true, 0, 2);
+  c.roots = {1, 1};
+  gw::AdaptiveGrid<2> grid(c);
+  ASSERT_EQ(grid.global_blocks(), 1u);
+  auto field = [](const std::array<double, 2>& x) { return std::sin(2 * kPi * x[0]) * std::cos(2 * kPi * x[1]); };
+  grid.sample([&](const auto& x, std::span<double> v) { v[0] = field(x); v[1] = 0; });
+  grid.fill_ghosts();
+  EXPECT_EQ(global_sum(grid.ghost_counts()[0]), static_cast<std::int64_t>(grid.layout().shape().size() - 64));
+  EXPECT_LT(max_error(grid, 0, field, true, gw::GhostKind::kSameLevel), 1e-14);
+}
