@@ -2,6 +2,7 @@
 
 #include "app/Simulation.hpp"
 #include "particles/ParticleSystem.hpp"
+#include "particles/dem/DemSystem.hpp"
 
 namespace grainwave::app {
 
@@ -10,6 +11,7 @@ const SceneSchema& scene_schema() {
     SceneSchema s;
     Simulation::declare(s);
     particles::ParticleSystem::declare(s);
+    particles::dem::DemSystem::declare(s);
     return s;
   }();
   return schema;
@@ -17,8 +19,9 @@ const SceneSchema& scene_schema() {
 
 std::unique_ptr<io::System> compose_system(const Scene& scene) {
   if (scene.has("particles")) return std::make_unique<particles::ParticleSystem>(scene);
+  if (scene.has("dem")) return std::make_unique<particles::dem::DemSystem>(scene);
   throw InputError({scene.file(), 0}, "",
-                   "the scene declares no physics to run: add a [particles] section",
+                   "the scene declares no physics to run: add a [particles] or [dem] section",
                    "see docs/scene-reference.md");
 }
 
