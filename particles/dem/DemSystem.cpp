@@ -175,9 +175,9 @@ void DemSystem::declare(SceneSchema& schema) {
   s.real("diameter_std", 0.0, "standard deviation of the Gaussian diameters, cut at ±2 sigma [m]")
       .at_least(0);
   s.text("placement", "random",
-         "collision (a head-on pair or particle-wall impact), lattice, or random (RSA) in the "
-         "fill box")
-      .one_of({"collision", "lattice", "random"});
+         "collision (a head-on pair or particle-wall impact), lattice (square/cubic), "
+         "lattice_dense (triangular/fcc), or random (RSA) in the fill box")
+      .one_of({"collision", "lattice", "lattice_dense", "random"});
   s.integer("count", 0, "number of particles to place in the fill box").at_least(0);
   s.reals("fill_lo", std::vector<double>{0, 0, 0}, "lower corner of the fill box [m]").of_length(3);
   s.reals("fill_hi", std::vector<double>{0, 0, 0}, "upper corner of the fill box [m]").of_length(3);
@@ -435,7 +435,7 @@ void DemSystem::place_particles(const Scene& scene) {
     }
     tally_.previous_gap = surface_gap();
   } else {
-    placement_ = placement == "lattice" ? Placement::kLattice : Placement::kRandom;
+    placement_ = placement == "random" ? Placement::kRandom : Placement::kLattice;
     const auto count = static_cast<std::size_t>(s.integer("count"));
     std::mt19937_64 rng(static_cast<std::uint64_t>(s.integer("seed")));
     TruncatedGaussianDiameter sizes(diameter, s.real("diameter_std"));
@@ -444,6 +444,7 @@ void DemSystem::place_particles(const Scene& scene) {
     request.dimension = dim;
     request.lo = vec3(s.reals("fill_lo"));
     request.hi = vec3(s.reals("fill_hi"));
+    request.dense = placement == "lattice_dense";
     if (dim == 2) request.lo.z() = request.hi.z() = 0.0;
     for (int k = 0; k < dim; ++k)
       if (request.hi[k] < request.lo[k]) s.fail("fill_hi", "needs fill_hi >= fill_lo");
@@ -897,8 +898,8 @@ void DemSystem::write_curtain_state(const std::filesystem::path& folder) const {
   root.set_attribute("window_y_low", curtain_window_[0]);
   root.set_attribute("window_y_high", curtain_window_[1]);
   root.set_attribute("dimension", static_cast<std::int64_t>(domain_.dimension));
-  root.set_attribute("units", std::string("SI: position, radius [m]; velocity [m/s]; "
-                                          "angular_velocity [rad/s]; time [s]"));
+  root.set_attribute("units", std::string("SI: m, m/s, rad/s, s"));
+  root.set_attribute("contents", std::string("particles below the slit; binned profiles"));
   root.write_text("scene_text", scene_.text());
   std::vector<std::size_t> inside;
   for (std::size_t i = 0; i < store_.size(); ++i) {

@@ -13,6 +13,12 @@ bool clear_of_obstacles(const FillObstacles& obstacles, const Vec3& x, double r)
     const FiniteWall& w = obstacles.finite[k];
     const double reach = r + obstacles.finite_clearance[k];
     if ((w.closest_point(x) - x).squaredNorm() < reach * reach) return false;
+    // Shadowed: the wall's in-plane axis crosses the vertical through x above x.
+    const Vec3& u = w.axis[0];
+    if (std::abs(u.x()) > 1e-12) {
+      const double s = (x.x() - w.centre.x()) / u.x();
+      if (std::abs(s) <= w.half_extent[0] && w.centre.y() + s * u.y() > x.y()) return false;
+    }
   }
   return true;
 }
@@ -75,17 +81,28 @@ std::vector<Vec3> lattice_fill(const FillRequest& request, const FillObstacles& 
   double largest = 0.0;
   for (double d : request.diameters) largest = std::max(largest, d);
   const double pitch = 1.02 * largest;
+  // Dense: 2D triangular rows; 3D odd rows shifted by half a pitch in x and z and stacked
+  // pitch/√2 apart (face-centred cubic), which keeps a thin periodic depth dense. Otherwise a
+  // square / simple cubic lattice, which settles into a disordered packing (a dense
+  // monodisperse lattice would keep its crystalline order).
+  const double row_spacing = !request.dense ? pitch
+                             : dim == 3     ? pitch / std::sqrt(2.0)
+                                            : 0.5 * std::sqrt(3.0) * pitch;
   std::uniform_real_distribution<double> jitter(-0.005 * largest, 0.005 * largest);
   long n[3] = {1, 1, 1};
+  const double spacing[3] = {pitch, row_spacing, pitch};
   for (int a = 0; a < dim; ++a)
-    n[a] = std::max(1L, static_cast<long>(std::floor((request.hi[a] - request.lo[a]) / pitch)) + 1);
+    n[a] = std::max(1L, static_cast<long>(std::floor((request.hi[a] - request.lo[a]) / spacing[a])) + 1);
   std::vector<Vec3> placed;
   for (long j = 0; j < n[1]; ++j)  // bottom rows first: a partial fill sits low
     for (long k = 0; k < n[2]; ++k)
       for (long i = 0; i < n[0]; ++i) {
         if (placed.size() == request.diameters.size()) return placed;
-        Vec3 x = request.lo + pitch * Vec3(static_cast<double>(i), static_cast<double>(j),
-                                           static_cast<double>(k));
+        const double shift = (request.dense && j % 2 == 1) ? 0.5 * pitch : 0.0;
+        Vec3 x = request.lo + Vec3(shift + pitch * static_cast<double>(i),
+                                   row_spacing * static_cast<double>(j),
+                                   dim == 3 ? shift + pitch * static_cast<double>(k) : 0.0);
+        if (x.x() > request.hi.x() || x.z() > request.hi.z()) continue;
         x.x() += jitter(rng);
         if (dim == 3) x.z() += jitter(rng);
         if (!clear_of_obstacles(obstacles, x, 0.5 * largest)) continue;

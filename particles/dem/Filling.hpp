@@ -3,7 +3,9 @@
 // sequential addition (RSA: random centres, each kept only if it overlaps no particle and no
 // wall placed before it), inside an axis-aligned fill box; the fill is then settled under
 // gravity by the DemSystem. Obstacles are the finite walls (segments/rectangles, with a
-// clearance for the fixed particles of a rough wall) and plane walls.
+// clearance for the fixed particles of a rough wall) and plane walls. A hopper is filled from
+// above: a site with a finite wall above it (under a funnel wall, outside the hopper) is
+// skipped, so the fill box may span the whole hopper width.
 #include "particles/ParticleStore.hpp"
 #include "particles/dem/Walls.hpp"
 
@@ -24,9 +26,11 @@ struct FillRequest {
   int dimension = 3;
   Vec3 lo = Vec3::Zero(), hi = Vec3::Ones();  ///< centres lie in [lo, hi]
   std::vector<double> diameters;              ///< one per particle to place, in id order
+  bool dense = false;                         ///< lattice: fcc / triangular instead of cubic
 };
 
-/// True when a sphere of radius r at x stays clear of every obstacle.
+/// True when a sphere of radius r at x stays clear of every obstacle and no finite wall lies
+/// above x (gravity along −y).
 bool clear_of_obstacles(const FillObstacles& obstacles, const Vec3& x, double r);
 
 /// RSA: returns centres for as many of the requested diameters as fit within `max_attempts`
@@ -35,8 +39,8 @@ std::vector<Vec3> random_sequential_addition(const FillRequest& request,
                                              const FillObstacles& obstacles, std::mt19937_64& rng,
                                              long max_attempts_per_particle = 2000);
 
-/// Square (2D) or simple cubic (3D) lattice of pitch 1.02 × the largest diameter filling the box
-/// from its low corner, skipping sites that touch an obstacle; a small random jitter breaks the
+/// A square / simple cubic lattice, or (dense) triangular rows in 2D and a face-centred cubic
+/// lattice in 3D, of pitch 1.02 × the largest diameter, filling the box from its low corner, skipping sites that touch an obstacle; a small random jitter breaks the
 /// symmetry. Returns at most diameters.size() centres.
 std::vector<Vec3> lattice_fill(const FillRequest& request, const FillObstacles& obstacles,
                                std::mt19937_64& rng);

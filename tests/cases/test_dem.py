@@ -129,8 +129,44 @@ def hopper_drain_on_2_ranks():
     expect(a == b, f"mass flow rate {a:.6f} (1 rank) and {b:.6f} (2 ranks)")
 
 
+def curtain_small_state():
+    """The scaled curtain writes curtain_state.h5: beta just below the slit in 0.45-0.64, the
+    curtain accelerates downwards and its width changes; info describes it; profiles plotted."""
+    out, s = run_case("curtain_small")
+    m = s["metrics"]
+    beta = m["beta_below_slit"]
+    expect(0.45 <= beta <= 0.64, f"beta below the slit {beta:.3f} over {m['statistics_samples']:.0f} samples")
+    path = os.path.join(out, "curtain_state.h5")
+    with h5py.File(path) as f:
+        expect(f.attrs["grainwave_kind"] in (b"curtain_state", "curtain_state"), "a curtain-state file")
+        x, v = f["particles/position"][()], f["particles/velocity"][()]
+        for key in ("angular_velocity", "radius"):
+            expect(f["particles/" + key].shape[0] == x.shape[0], f"{key} for every particle")
+        expect(f["profiles/beta"].shape == (len(f["profiles/y"]), len(f["profiles/x"])), "beta profile on the bins")
+        scene = bytes(np.array(f["scene_text"]).astype(np.uint8)).decode()
+    expect("[dem_curtain]" in scene, "the scene that produced it is stored")
+    expect(len(x) > 500 and np.all(x[:, 1] < 0), f"{len(x)} particles, all below the slit")
+    # Bands 1 mm high from the slit down to the front: mean fall speed and width (std of x).
+    bands = [(y0, (x[:, 1] >= y0) & (x[:, 1] < y0 + 1e-3)) for y0 in (-1e-3, -2e-3, -3e-3)]
+    speed = [-v[m, 1].mean() for _, m in bands]
+    width = [x[m, 0].std() for _, m in bands]
+    print("bands (top mm, speed m/s, width mm):",
+          [(round(y0 * 1e3), round(sp, 4), round(w * 1e3, 3)) for (y0, _), sp, w in zip(bands, speed, width)])
+    expect(speed[2] > 1.1 * speed[0], f"gravity accelerates the curtain: {speed[0]:.3f} -> {speed[2]:.3f} m/s")
+    change = width[1] / width[0] - 1
+    expect(abs(change) > 0.02, f"the curtain {'narrows' if change < 0 else 'spreads'} as it falls: "
+           f"width {width[0] * 1e3:.3f} -> {width[1] * 1e3:.3f} mm ({100 * change:+.1f} %)")
+    info = grainwave("info", path, check=0).stdout
+    expect("curtain_state" in info and "/profiles/beta" in info, "grainwave info describes the file")
+    proc = subprocess.run([sys.executable, os.path.join(SOURCE, "postprocess", "plot_dem_profiles.py"), path],
+                          capture_output=True, text=True)
+    png = os.path.join(out, "curtain_state_profiles.png")
+    expect(proc.returncode == 0 and os.path.getsize(png) > 20000, f"profiles plotted to {png} {proc.stderr}")
+    expect(os.path.getsize(os.path.join(out, "statistics.csv")) > 1000, "statistics.csv written")
+
+
 if __name__ == "__main__":
     main({f.__name__: f for f in [collision_restitution_linear, collision_energy_drift,
                                   collision_laws_on_1_and_2_ranks, settled_bed_packing,
                                   restart_bitwise_with_history, hopper_drain_flow_rate,
-                                  hopper_drain_on_2_ranks]})
+                                  hopper_drain_on_2_ranks, curtain_small_state]})
