@@ -165,6 +165,45 @@ def curtain_small_state():
     expect(os.path.getsize(os.path.join(out, "statistics.csv")) > 1000, "statistics.csv written")
 
 
+def hopper_restart_bitwise():
+    """Restart across the gate opening, with particles leaving through the open outlet and the
+    flow rate being measured: the final state and the flow rate are bit for bit the same."""
+    common = ["dem.count=300", "run.t_end=0.5", "output.interval=0.0"]
+    args = sum([["--set", o] for o in common], [])
+    full, s_full = run_case("hopper_drain", *common, tag="_restart_full")
+    part = scratch("hopper_drain_restart_part")
+    grainwave("run", case("hopper_drain.toml"), "--out", part, *args, "--set", "run.max_steps=19500", check=0)
+    grainwave("run", case("hopper_drain.toml"), "--out", part, "--restart", part, *args, check=0)
+    s_part = summary(part)
+    with h5py.File(sorted(glob.glob(os.path.join(part, "checkpoint_*.h5")))[0]) as f:
+        before = f["system/dem/id"].shape[0]
+    expect(before < 300, f"disks had left before the stop ({300 - before})")
+    expect(s_full["metrics"]["gate_opened_at"] < 19500 * s_full["metrics"]["time_step"],
+           "the gate opened before the stop")
+    expect(s_full["counts"]["particles_removed"] > 0, f"{s_full['counts']['particles_removed']} disks drained")
+    for key in ("mass_flow_rate", "gate_opened_at", "kinetic_energy"):
+        expect(s_full["metrics"][key] == s_part["metrics"][key], f"{key} identical after the restart "
+               f"({s_full['metrics'][key]:.12g})")
+    last = lambda d: sorted(glob.glob(os.path.join(d, "output_*.h5")))[-1]
+    with h5py.File(last(full)) as a, h5py.File(last(part)) as b:
+        expect(np.array_equal(a["particles/position"][()], b["particles/position"][()]) and
+               np.array_equal(a["particles/velocity"][()], b["particles/velocity"][()]),
+               "positions and velocities identical after the restart")
+
+
+def dense_bed_on_1_and_2_ranks():
+    """A dense, frictional configuration with history on 1 and 2 ranks: identical contact
+    forces, hence identical states (the DEM store is replicated on every rank)."""
+    common = ["run.t_end=0.03", 'dem.tangential_law="coulomb_spring"']
+    one, _ = run_case("dem_settle", *common, tag="_1rank")
+    two, _ = run_case("dem_settle", *common, ranks=2, tag="_2ranks")
+    last = lambda d: sorted(glob.glob(os.path.join(d, "output_*.h5")))[-1]
+    with h5py.File(last(one)) as a, h5py.File(last(two)) as b:
+        for key in ("position", "velocity", "angular_velocity"):
+            expect(np.array_equal(a["particles/" + key][()], b["particles/" + key][()]),
+                   f"{key} identical on 1 and 2 ranks")
+
+
 def read_statistics_csv(out):
     import csv
     with open(os.path.join(out, "statistics.csv")) as f:
@@ -219,4 +258,5 @@ if __name__ == "__main__":
                                   collision_laws_on_1_and_2_ranks, settled_bed_packing,
                                   restart_bitwise_with_history, hopper_drain_flow_rate,
                                   hopper_drain_on_2_ranks, curtain_small_state,
-                                  channel_small_plug_flow, channel_full, curtain_full]})
+                                  channel_small_plug_flow, channel_full, curtain_full,
+                                  hopper_restart_bitwise, dense_bed_on_1_and_2_ranks]})
