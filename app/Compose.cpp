@@ -3,6 +3,7 @@
 #include "app/Simulation.hpp"
 #include "particles/ParticleSystem.hpp"
 #include "wavelet/WaveletSystem.hpp"
+#include "particles/dem/DemSystem.hpp"
 
 namespace grainwave::app {
 
@@ -12,6 +13,7 @@ const SceneSchema& scene_schema() {
     Simulation::declare(s);
     particles::ParticleSystem::declare(s);
     wavelet::WaveletSystem::declare(s);
+    particles::dem::DemSystem::declare(s);
     return s;
   }();
   return schema;
@@ -20,8 +22,9 @@ const SceneSchema& scene_schema() {
 std::unique_ptr<io::System> compose_system(const Scene& scene) {
   if (scene.has("particles")) return std::make_unique<particles::ParticleSystem>(scene);
   if (scene.has("wavelet")) return wavelet::WaveletSystem::create(scene);
+  if (scene.has("dem")) return std::make_unique<particles::dem::DemSystem>(scene);
   throw InputError({scene.file(), 0}, "",
-                   "the scene declares no physics to run: add a [particles] section",
+                   "the scene declares no physics to run: add a [particles], [dem] or [wavelet] section",
                    "see docs/scene-reference.md");
 }
 

@@ -69,6 +69,7 @@ class ContactForceField {
   /// Contacts found by the last evaluation (particle pairs and wall contacts).
   const std::vector<Contact>& contacts() const { return contacts_; }
   const ContactHistory& history() const { return history_; }
+  ContactHistory& history() { return history_; }
   const VerletList& verlet_list() const { return verlet_; }
 
  private:

@@ -82,4 +82,24 @@ std::size_t ContactHistory::live_count() const {
       }));
 }
 
+void ContactHistory::live_entries(std::vector<ContactHistoryEntry>& out) const {
+  out.clear();
+  for (const ContactHistoryEntry& e : slots_)
+    if (e.last_step >= 0 && live(e)) out.push_back(e);
+}
+
+void ContactHistory::restore(std::int64_t step, const std::vector<ContactHistoryEntry>& entries) {
+  step_ = step;
+  std::size_t capacity = 64;
+  while (2 * (entries.size() + 1) > capacity) capacity *= 2;
+  slots_.assign(capacity, ContactHistoryEntry{});
+  occupied_ = 0;
+  for (const ContactHistoryEntry& e : entries) {
+    std::size_t k = home(e.first, e.second);
+    while (slots_[k].last_step >= 0) k = (k + 1) & (slots_.size() - 1);
+    slots_[k] = e;
+    ++occupied_;
+  }
+}
+
 }  // namespace grainwave::particles::dem

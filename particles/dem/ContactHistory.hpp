@@ -48,6 +48,12 @@ class ContactHistory {
   const ContactHistoryEntry* find(std::int64_t a, std::int64_t b) const;
 
   std::size_t live_count() const;
+  /// Copies the live entries into `out` (its capacity is reused), for checkpoints, the last
+  /// good state and, later, migration between ranks.
+  void live_entries(std::vector<ContactHistoryEntry>& out) const;
+  /// Replaces the table by `entries` at step counter `step` (a restart). Entries land in other
+  /// slots than before, which changes nothing: lookups go by the id pair.
+  void restore(std::int64_t step, const std::vector<ContactHistoryEntry>& entries);
   std::size_t capacity() const { return slots_.size(); }
   std::int64_t step() const { return step_; }
   static constexpr std::size_t bytes_per_entry() { return sizeof(ContactHistoryEntry); }

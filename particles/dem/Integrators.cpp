@@ -16,9 +16,11 @@ double stable_time_step(const ParticleStore& store, const NormalLaw& law, int st
 }
 
 void VelocityVerlet::step(ParticleStore& store, ContactForceField& field, double dt) {
-  if (!have_forces_ || field.force().size() != store.size()) {
+  if (!have_forces_ || force_.size() != store.size()) {
     // Forces at t_n without advancing the tangential history (no time has passed yet).
     field.evaluate(store, HistoryStage::kPredict, dt);
+    force_.assign(field.force().begin(), field.force().end());
+    torque_.assign(field.torque().begin(), field.torque().end());
     have_forces_ = true;
   }
   // Kick and drift, then a second kick with the old forces: the velocities seen by the force
@@ -30,7 +32,7 @@ void VelocityVerlet::step(ParticleStore& store, ContactForceField& field, double
   old_torque_.resize(n);
   const Domain& domain = field.domain();
   for (std::size_t i = 0; i < n; ++i) {
-    const Vec3 f = field.force()[i], t = field.torque()[i];
+    const Vec3 f = force_[i], t = torque_[i];
     old_force_[i] = f;
     old_torque_[i] = t;
     const double inv_m = store.inverse_mass(i);
@@ -50,6 +52,8 @@ void VelocityVerlet::step(ParticleStore& store, ContactForceField& field, double
     store.velocity[i] += (0.5 * dt * inv_m) * (f[i] - old_force_[i]);
     store.angular_velocity[i] += (0.5 * dt / store.inertia[i]) * (t[i] - old_torque_[i]);
   }
+  force_.assign(f.begin(), f.end());
+  torque_.assign(t.begin(), t.end());
 }
 
 void RungeKutta2::step(ParticleStore& store, ContactForceField& field, double dt) {

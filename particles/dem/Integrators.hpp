@@ -26,8 +26,22 @@ class VelocityVerlet {
   /// Call after particles were added or removed: forces are recomputed before the next kick.
   void reset() { have_forces_ = false; }
 
+  /// The forces and torques at the start of the next step (those of the last evaluation), kept
+  /// by the integrator so that a restart or a removal of particles can put them back exactly
+  /// instead of re-evaluating them (which would differ from the uninterrupted run in the last
+  /// bits: the evaluation saw the predicted velocities).
+  bool has_forces() const { return have_forces_; }
+  const std::vector<Vec3>& forces() const { return force_; }
+  const std::vector<Vec3>& torques() const { return torque_; }
+  void restore_forces(std::vector<Vec3> force, std::vector<Vec3> torque) {
+    force_ = std::move(force);
+    torque_ = std::move(torque);
+    have_forces_ = true;
+  }
+
  private:
   bool have_forces_ = false;
+  std::vector<Vec3> force_, torque_;
   std::vector<Vec3> old_force_, old_torque_;
 };
 

@@ -1,0 +1,262 @@
+"""Soft-sphere DEM cases (particles/dem/, DemSystem): single collisions against 002 Eqs 3.10 and
+3.17, energy drift of elastic collisions, a settled bed's packing fraction, hopper drain, the
+particle curtain, replicated MPI runs and bitwise restart with contact history."""
+import glob
+import os
+import subprocess
+import sys
+
+import h5py
+import numpy as np
+
+from gwtest import SOURCE, case, expect, grainwave, main, scratch, summary
+
+WALL = ['dem.collision_partner="wall"', 'dem.boundary_x=["wall", "wall"]']
+
+
+def run_case(name, *overrides, ranks=None, out=None, tag=""):
+    out = out or scratch(name + tag)
+    args = []
+    for o in overrides:
+        args += ["--set", o]
+    grainwave("run", case(f"{name}.toml"), "--out", out, *args, ranks=ranks, check=0)
+    return out, summary(out)
+
+
+def check_collision(m, label):
+    e, e_meas = m["restitution_target"], m["restitution_measured"]
+    tau, tau_meas = m["contact_duration_theory"], m["contact_duration"]
+    expect(abs(e_meas / e - 1) <= 0.005, f"{label}: restitution {e_meas:.6f} vs e = {e} "
+           f"({100 * (e_meas / e - 1):+.3f} %, limit 0.5 %)")
+    expect(abs(tau_meas / tau - 1) <= 0.01, f"{label}: contact duration {tau_meas:.6e} s vs Eq. 3.17 "
+           f"{tau:.6e} s ({100 * (tau_meas / tau - 1):+.3f} %, limit 1 %)")
+
+
+def collision_restitution_linear():
+    """Linear spring-dashpot, N = 50, velocity Verlet: pair at e = 0.5, 0.9, 0.97 and wall."""
+    for e in (0.5, 0.9, 0.97):
+        _, s = run_case("dem_collision", f"dem.restitution={e}", tag=f"_{e}")
+        check_collision(s["metrics"], f"pair e = {e}")
+    for e in (0.5, 0.9):
+        _, s = run_case("dem_collision", f"dem.restitution={e}", *WALL, tag=f"_wall_{e}")
+        check_collision(s["metrics"], f"wall e = {e}")
+
+
+def collision_energy_drift():
+    """e = 1, mu = 0, N = 50: relative energy change over >= 1000 collisions below 1e-4."""
+    _, s = run_case("dem_collision", "dem.restitution=1.0", "run.t_end=0.143")
+    n, drift = s["counts"]["collisions"], s["metrics"]["energy_rel_drift"]
+    expect(n >= 1000, f"{n} collisions")
+    expect(abs(drift) < 1e-4, f"energy drift {drift:.2e} over {n} elastic collisions (limit 1e-4)")
+
+
+def collision_laws_on_1_and_2_ranks():
+    """Each law pairing (the kernels' golden cases) through the scene, serially and on 2 ranks:
+    the replicated DEM gives identical numbers; linear-law results match Eqs 3.10/3.17."""
+    variants = {
+        "linear_verlet": ["dem.restitution=0.9"],
+        "linear_rk2": ["dem.restitution=0.9", 'dem.integrator="runge_kutta2"'],
+        "linear_wall_rk2": ["dem.restitution=0.5", 'dem.integrator="runge_kutta2"', *WALL],
+        "hertz": ['dem.normal_law="hertz"', "dem.restitution=0.8"],
+        "coulomb_spring": ['dem.tangential_law="coulomb_spring"', "dem.friction=0.3"],
+        "mindlin": ['dem.tangential_law="mindlin"', "dem.friction=0.3"],
+    }
+    for name, overrides in variants.items():
+        _, one = run_case("dem_collision", *overrides, tag=f"_{name}_1")
+        _, two = run_case("dem_collision", *overrides, ranks=2, tag=f"_{name}_2")
+        for key in ("restitution_measured", "contact_duration", "kinetic_energy"):
+            expect(one["metrics"][key] == two["metrics"][key],
+                   f"{name}: {key} identical on 1 and 2 ranks ({one['metrics'][key]:.12g})")
+        if "hertz" not in name:
+            check_collision(one["metrics"], name)
+        else:  # Hertz: e by construction; the duration at the reference speed (= impact speed)
+            m = one["metrics"]
+            expect(abs(m["restitution_measured"] / m["restitution_target"] - 1) <= 0.005,
+                   f"hertz: restitution {m['restitution_measured']:.5f} vs {m['restitution_target']}")
+            expect(abs(m["contact_duration"] / m["contact_duration_theory"] - 1) <= 0.01,
+                   f"hertz: duration {m['contact_duration']:.4e} vs {m['contact_duration_theory']:.4e}")
+
+
+def settled_bed_packing():
+    out, s = run_case("dem_settle")
+    m = s["metrics"]
+    expect("gate_opened_at" in m, f"the bed came to rest (rms speed < 5 mm/s) at t = {m.get('gate_opened_at')}")
+    phi = m["packing_fraction"]
+    expect(0.58 <= phi <= 0.64, f"packing fraction {phi:.4f} between random loose and close packing")
+    print(f"particle_steps_per_s {m['particle_steps_per_s']:.3g}, bytes_per_particle {m['bytes_per_particle']:.0f}")
+
+
+def restart_bitwise_with_history():
+    """A run stopped half way and restarted from its checkpoint (contact history, integrator
+    forces) ends bit for bit where the uninterrupted run ends."""
+    common = ["run.t_end=0.05", 'dem.tangential_law="coulomb_spring"', "output.interval=0.0"]
+    full, _ = run_case("dem_settle", *common, tag="_full")
+    part = scratch("dem_settle_part")
+    grainwave("run", case("dem_settle.toml"), "--out", part, *sum([["--set", o] for o in common], []),
+              "--set", "run.max_steps=2000", check=0)
+    grainwave("run", case("dem_settle.toml"), "--out", part, "--restart", part,
+              *sum([["--set", o] for o in common], []), check=0)
+    last = lambda d: sorted(glob.glob(os.path.join(d, "output_*.h5")))[-1]
+    with h5py.File(last(full)) as a, h5py.File(last(part)) as b:
+        expect(a.attrs["time"] == b.attrs["time"], f"both end at t = {a.attrs['time']}")
+        for key in ("position", "velocity", "angular_velocity"):
+            same = np.array_equal(a["particles/" + key][()], b["particles/" + key][()])
+            expect(same, f"{key} identical after the restart")
+
+
+def hopper_drain_flow_rate():
+    """002 Fig. 3.4: the mass flow rate is independent of the fill height above a critical
+    height, and lower below it (the fill no longer screens the outlet)."""
+    rates = {}
+    for n in (300, 1000, 1500):
+        _, s = run_case("hopper_drain", f"dem.count={n}", tag=f"_{n}")
+        rates[n] = s["metrics"]["mass_flow_rate"]
+        print(f"fill {n} disks: opened at {s['metrics']['gate_opened_at']:.3f} s, "
+              f"mass flow rate {rates[n]:.3f} kg/s per m, {s['counts']['particles_removed']} drained")
+    # ~150 disks cross the plane in the window: 5 % allows for that counting noise.
+    expect(abs(rates[1000] / rates[1500] - 1) <= 0.05,
+           f"flow rate independent of fill above the critical height: {rates[1000]:.3f} vs "
+           f"{rates[1500]:.3f} kg/s/m ({100 * (rates[1000] / rates[1500] - 1):+.2f} %)")
+    expect(rates[300] < 0.9 * rates[1500],
+           f"below the critical height the rate falls: {rates[300]:.3f} kg/s/m")
+
+
+def hopper_drain_on_2_ranks():
+    """The replicated DEM gives the same mass flow rate on 2 ranks (here: identical)."""
+    _, one = run_case("hopper_drain", "dem.count=600", tag="_r1")
+    _, two = run_case("hopper_drain", "dem.count=600", ranks=2, tag="_r2")
+    a, b = one["metrics"]["mass_flow_rate"], two["metrics"]["mass_flow_rate"]
+    expect(a == b, f"mass flow rate {a:.6f} (1 rank) and {b:.6f} (2 ranks)")
+
+
+def curtain_small_state():
+    """The scaled curtain writes curtain_state.h5: beta just below the slit in 0.45-0.64, the
+    curtain accelerates downwards and its width changes; info describes it; profiles plotted."""
+    out, s = run_case("curtain_small")
+    m = s["metrics"]
+    beta = m["beta_below_slit"]
+    expect(0.45 <= beta <= 0.64, f"beta below the slit {beta:.3f} over {m['statistics_samples']:.0f} samples")
+    path = os.path.join(out, "curtain_state.h5")
+    with h5py.File(path) as f:
+        expect(f.attrs["grainwave_kind"] in (b"curtain_state", "curtain_state"), "a curtain-state file")
+        x, v = f["particles/position"][()], f["particles/velocity"][()]
+        for key in ("angular_velocity", "radius"):
+            expect(f["particles/" + key].shape[0] == x.shape[0], f"{key} for every particle")
+        expect(f["profiles/beta"].shape == (len(f["profiles/y"]), len(f["profiles/x"])), "beta profile on the bins")
+        scene = bytes(np.array(f["scene_text"]).astype(np.uint8)).decode()
+    expect("[dem_curtain]" in scene, "the scene that produced it is stored")
+    expect(len(x) > 500 and np.all(x[:, 1] < 0), f"{len(x)} particles, all below the slit")
+    # Bands 1 mm high from the slit down to the front: mean fall speed and width (std of x).
+    bands = [(y0, (x[:, 1] >= y0) & (x[:, 1] < y0 + 1e-3)) for y0 in (-1e-3, -2e-3, -3e-3)]
+    speed = [-v[m, 1].mean() for _, m in bands]
+    width = [x[m, 0].std() for _, m in bands]
+    print("bands (top mm, speed m/s, width mm):",
+          [(round(y0 * 1e3), round(sp, 4), round(w * 1e3, 3)) for (y0, _), sp, w in zip(bands, speed, width)])
+    expect(speed[2] > 1.1 * speed[0], f"gravity accelerates the curtain: {speed[0]:.3f} -> {speed[2]:.3f} m/s")
+    change = width[1] / width[0] - 1
+    expect(abs(change) > 0.02, f"the curtain {'narrows' if change < 0 else 'spreads'} as it falls: "
+           f"width {width[0] * 1e3:.3f} -> {width[1] * 1e3:.3f} mm ({100 * change:+.1f} %)")
+    info = grainwave("info", path, check=0).stdout
+    expect("curtain_state" in info and "/profiles/beta" in info, "grainwave info describes the file")
+    proc = subprocess.run([sys.executable, os.path.join(SOURCE, "postprocess", "plot_dem_profiles.py"), path],
+                          capture_output=True, text=True)
+    png = os.path.join(out, "curtain_state_profiles.png")
+    expect(proc.returncode == 0 and os.path.getsize(png) > 20000, f"profiles plotted to {png} {proc.stderr}")
+    expect(os.path.getsize(os.path.join(out, "statistics.csv")) > 1000, "statistics.csv written")
+
+
+def hopper_restart_bitwise():
+    """Restart across the gate opening, with particles leaving through the open outlet and the
+    flow rate being measured: the final state and the flow rate are bit for bit the same."""
+    common = ["dem.count=300", "run.t_end=0.5", "output.interval=0.0"]
+    args = sum([["--set", o] for o in common], [])
+    full, s_full = run_case("hopper_drain", *common, tag="_restart_full")
+    part = scratch("hopper_drain_restart_part")
+    grainwave("run", case("hopper_drain.toml"), "--out", part, *args, "--set", "run.max_steps=19500", check=0)
+    grainwave("run", case("hopper_drain.toml"), "--out", part, "--restart", part, *args, check=0)
+    s_part = summary(part)
+    with h5py.File(sorted(glob.glob(os.path.join(part, "checkpoint_*.h5")))[0]) as f:
+        before = f["system/dem/id"].shape[0]
+    expect(before < 300, f"disks had left before the stop ({300 - before})")
+    expect(s_full["metrics"]["gate_opened_at"] < 19500 * s_full["metrics"]["time_step"],
+           "the gate opened before the stop")
+    expect(s_full["counts"]["particles_removed"] > 0, f"{s_full['counts']['particles_removed']} disks drained")
+    for key in ("mass_flow_rate", "gate_opened_at", "kinetic_energy"):
+        expect(s_full["metrics"][key] == s_part["metrics"][key], f"{key} identical after the restart "
+               f"({s_full['metrics'][key]:.12g})")
+    last = lambda d: sorted(glob.glob(os.path.join(d, "output_*.h5")))[-1]
+    with h5py.File(last(full)) as a, h5py.File(last(part)) as b:
+        expect(np.array_equal(a["particles/position"][()], b["particles/position"][()]) and
+               np.array_equal(a["particles/velocity"][()], b["particles/velocity"][()]),
+               "positions and velocities identical after the restart")
+
+
+def dense_bed_on_1_and_2_ranks():
+    """A dense, frictional configuration with history on 1 and 2 ranks: identical contact
+    forces, hence identical states (the DEM store is replicated on every rank)."""
+    common = ["run.t_end=0.03", 'dem.tangential_law="coulomb_spring"']
+    one, _ = run_case("dem_settle", *common, tag="_1rank")
+    two, _ = run_case("dem_settle", *common, ranks=2, tag="_2ranks")
+    last = lambda d: sorted(glob.glob(os.path.join(d, "output_*.h5")))[-1]
+    with h5py.File(last(one)) as a, h5py.File(last(two)) as b:
+        for key in ("position", "velocity", "angular_velocity"):
+            expect(np.array_equal(a["particles/" + key][()], b["particles/" + key][()]),
+                   f"{key} identical on 1 and 2 ranks")
+
+
+def read_statistics_csv(out):
+    import csv
+    with open(os.path.join(out, "statistics.csv")) as f:
+        return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
+
+
+def channel_small_plug_flow():
+    """Recycled channel flow (002 §3.3, smooth walls): no particle lost, a flat (plug) <v>
+    profile as in 002 Fig. 3.6, a dense flow, and a mass flow rate through the plane that
+    agrees with the binned statistics, rho beta <v> A."""
+    # 100 Hz sampling instead of the 30 fps camera: the test runs only 0.25 s of flow.
+    out, s = run_case("channel_small", "run.t_end=0.5", "dem_statistics.interval=0.01")
+    m = s["metrics"]
+    expect(s["counts"]["particles_removed"] == 0, "periodic recycling keeps every particle")
+    rows = read_statistics_csv(out)
+    v = np.array([r["v_mean"] for r in rows])
+    beta = np.array([r["beta"] for r in rows])
+    expect(np.all(v < 0), f"downward flow in every bin: <v> = {np.round(v, 4)} m/s")
+    expect(v.max() / v.min() >= 0.8, f"plug flow: <v> across the channel within 20 % ({v.max() / v.min():.3f})")
+    expect(0.5 <= m["beta_below_slit"] <= 0.66, f"dense flow in the channel: beta = {m['beta_below_slit']:.3f}")
+    width, depth, rho = 0.03, 0.009, 2600.0
+    from_bins = -rho * m["beta_below_slit"] * v.mean() * width * depth
+    rate = m["mass_flow_rate"]
+    # Mass conservation between two measurements of different kind; 10 % covers the sampling
+    # noise of ~20 samples and the bin-edge error of centre counting.
+    expect(abs(rate / from_bins - 1) <= 0.10, f"mass flow rate {rate:.4f} kg/s vs rho beta <v> A = "
+           f"{from_bins:.4f} kg/s ({100 * (rate / from_bins - 1):+.1f} %)")
+
+
+def channel_full():
+    """Long validation run (label validate): the full-size channel of 002 §3.3."""
+    out, s = run_case("channel")
+    m = s["metrics"]
+    rows = read_statistics_csv(out)
+    v = np.array([r["v_mean"] for r in rows])
+    expect(s["counts"]["particles_removed"] == 0 and np.all(v < 0), "recycled downward flow")
+    print(f"mass_flow_rate {m['mass_flow_rate']:.4f} kg/s, <v> {np.round(v, 4)}, beta {m['beta_below_slit']:.3f}, "
+          f"particle_steps_per_s {m['particle_steps_per_s']:.3g}")
+
+
+def curtain_full():
+    """Long validation run (label validate): the full-size curtain of 002 §3.4."""
+    out, s = run_case("curtain")
+    beta = s["metrics"]["beta_below_slit"]
+    expect(0.45 <= beta <= 0.64, f"beta below the slit {beta:.3f}")
+    subprocess.run([sys.executable, os.path.join(SOURCE, "postprocess", "plot_dem_profiles.py"),
+                    os.path.join(out, "curtain_state.h5")], check=True)
+
+
+if __name__ == "__main__":
+    main({f.__name__: f for f in [collision_restitution_linear, collision_energy_drift,
+                                  collision_laws_on_1_and_2_ranks, settled_bed_packing,
+                                  restart_bitwise_with_history, hopper_drain_flow_rate,
+                                  hopper_drain_on_2_ranks, curtain_small_state,
+                                  channel_small_plug_flow, channel_full, curtain_full,
+                                  hopper_restart_bitwise, dense_bed_on_1_and_2_ranks]})
