@@ -1,6 +1,7 @@
 #include "app/Compose.hpp"
 
 #include "app/Simulation.hpp"
+#include "fluid/FluidSystem.hpp"
 #include "particles/ParticleSystem.hpp"
 #include "wavelet/WaveletSystem.hpp"
 
@@ -12,6 +13,7 @@ const SceneSchema& scene_schema() {
     Simulation::declare(s);
     particles::ParticleSystem::declare(s);
     wavelet::WaveletSystem::declare(s);
+    fluid::FluidSystem::declare(s);
     return s;
   }();
   return schema;
@@ -19,6 +21,7 @@ const SceneSchema& scene_schema() {
 
 std::unique_ptr<io::System> compose_system(const Scene& scene) {
   if (scene.has("particles")) return std::make_unique<particles::ParticleSystem>(scene);
+  if (scene.has("fluid")) return fluid::FluidSystem::create(scene);
   if (scene.has("wavelet")) return wavelet::WaveletSystem::create(scene);
   throw InputError({scene.file(), 0}, "",
                    "the scene declares no physics to run: add a [particles] section",
