@@ -73,7 +73,11 @@ int arkode_rhs(realtype t, N_Vector y, N_Vector ydot, void* user) {
 
 std::span<double> ErkIntegrator::state(std::size_t local_size) {
   Impl& m = *impl_;
-  if (!m.y || local_size != m.size) {
+  // Collective: every rank resizes when any rank's share changed, so all take the same ARKODE
+  // path (ERKStepResize or ERKStepReset) and its global reductions stay matched.
+  int changed = (!m.y || local_size != m.size) ? 1 : 0;
+  MPI_Allreduce(MPI_IN_PLACE, &changed, 1, MPI_INT, MPI_LOR, m.comm);
+  if (changed) {
     if (m.y) N_VDestroy(m.y);
     const auto local = static_cast<sunindextype>(local_size);
     sunindextype global = 0;

@@ -31,7 +31,7 @@ std::array<double, Dim> head(const std::vector<double>& v) {
   return out;
 }
 
-enum class InitialKind { kUniform, kRiemann, kShock, kVortex };
+enum class InitialKind { kUniform, kRiemann, kShock, kVortex, kQuadrants };
 
 /// The initial state and, where one exists, the exact solution at time t.
 template <int Dim>
@@ -42,6 +42,8 @@ struct InitialCondition {
   std::array<double, Dim> normal{}, centre{}, velocity{}, length{};
   std::array<bool, Dim> periodic{};
   double shock_mach = 2, vortex_strength = 5;
+  std::array<double, 2> density_wave{};          ///< amplitude, wavenumber on the right state (Shu-Osher)
+  std::array<std::array<double, 4>, 4> quadrants{};  ///< (rho, u, v, p) of the four 2D quadrants
 
   double along_normal(const std::array<double, Dim>& x) const {
     double s = 0;
@@ -62,19 +64,38 @@ struct InitialCondition {
     const auto jump = normal_shock(shock_mach, gamma);
     return {jump.density_ratio, jump.velocity_over_c1, jump.pressure_ratio / gamma};
   }
-  bool has_exact() const { return kind == InitialKind::kRiemann || kind == InitialKind::kVortex || kind == InitialKind::kUniform; }
+  bool has_exact() const {
+    return (kind == InitialKind::kRiemann && density_wave[0] == 0) || kind == InitialKind::kVortex ||
+           kind == InitialKind::kUniform;
+  }
 
   Primitive<Dim> at(const std::array<double, Dim>& x, double t) const {
     switch (kind) {
       case InitialKind::kUniform: return with_normal_velocity(left);
       case InitialKind::kRiemann: {
         const double s = along_normal(x);
+        if (t <= 0 && s >= 0 && density_wave[0] != 0) {
+          auto w = with_normal_velocity(right);
+          w.rho *= 1 + density_wave[0] * std::sin(density_wave[1] * s);
+          return w;
+        }
         if (t <= 0) return with_normal_velocity(s < 0 ? left : right);
         const ExactRiemannSolver solver(left, right, gamma);
         return with_normal_velocity(solver.sample(s / t));
       }
       case InitialKind::kShock:  // moves along +normal into the gas ahead
         return with_normal_velocity(along_normal(x) > 0 ? ahead_of_shock() : behind_shock());
+      case InitialKind::kQuadrants: {  // numbered counter-clockwise from x > cx, y > cy
+        const bool right_half = x[0] > centre[0];
+        const bool upper_half = Dim > 1 && x[static_cast<std::size_t>(Dim > 1)] > centre[static_cast<std::size_t>(Dim > 1)];
+        const auto& q = quadrants[upper_half ? (right_half ? 0 : 1) : (right_half ? 3 : 2)];
+        Primitive<Dim> w;
+        w.rho = q[0];
+        w.u[0] = q[1];
+        if constexpr (Dim > 1) w.u[1] = q[2];
+        w.p = q[3];
+        return w;
+      }
       case InitialKind::kVortex: {
         std::array<double, 2> d{};
         for (int a = 0; a < std::min(Dim, 2); ++a) {
@@ -217,6 +238,7 @@ FluidModel<Dim>::FluidModel(const Scene& scene) {
   initial_.kind = initial == "riemann" ? InitialKind::kRiemann
                   : initial == "shock" ? InitialKind::kShock
                   : initial == "vortex" ? InitialKind::kVortex
+                  : initial == "quadrants" ? InitialKind::kQuadrants
                                         : InitialKind::kUniform;
   initial_.gamma = gamma_;
   const auto& l = s.reals("left");
@@ -239,6 +261,11 @@ FluidModel<Dim>::FluidModel(const Scene& scene) {
   initial_.velocity = head<Dim>(s.reals("velocity"));
   initial_.shock_mach = s.real("shock_mach");
   initial_.vortex_strength = s.real("vortex_strength");
+  const auto wave = s.reals("density_wave");
+  initial_.density_wave = {wave[0], wave[1]};
+  const auto quadrants = s.reals("quadrants");
+  for (std::size_t k = 0; k < 16; ++k) initial_.quadrants[k / 4][k % 4] = quadrants[k];
+  if (initial_.kind == InitialKind::kQuadrants && Dim < 2) s.fail("initial", "four quadrants need dimension 2 or 3");
   for (int a = 0; a < Dim; ++a)
     for (int side = 0; side < 2; ++side) {
       auto face = initial_.centre;
@@ -496,7 +523,7 @@ void FluidModel<Dim>::advance(double t, double dt) {
     auto y = integrator_->state(grid_->local_blocks() * interior_at_.size() * kFields);
     pack(y);
     flag = integrator_->step(t, dt);
-    unpack(integrator_->state(y.size()));
+    unpack(y);  // ARKODE wrote the result into the same vector
   }
   ++steps_taken_;
   stats_.t = t + dt;
@@ -833,8 +860,8 @@ void FluidSystem::declare(SceneSchema& schema) {
   s.real("capturing_coefficient", 1.2, "k of the dissipation flux k lambda s (q_{i+1} - q_i)").at_least(0);
   s.real("sensor_threshold", 0.001, "psi_0: no dissipation where the sensor is below it").at_least(0);
   s.text("initial", "uniform", "uniform, riemann (two states across a plane), shock (planar shock of shock_mach) "
-                               "or vortex (isentropic vortex)")
-      .one_of({"uniform", "riemann", "shock", "vortex"});
+                               "vortex (isentropic vortex) or quadrants (2D Riemann problem)")
+      .one_of({"uniform", "riemann", "shock", "vortex", "quadrants"});
   s.reals("left", std::vector<double>{1, 0, 1}, "rho, normal velocity, p on the side behind the normal (uniform: "
                                                  "the state)")
       .of_length(3);
@@ -846,6 +873,12 @@ void FluidSystem::declare(SceneSchema& schema) {
   s.reals("velocity", std::vector<double>{1, 1, 0}, "vortex: free-stream velocity").of_length(3);
   s.real("shock_mach", 2.0, "shock: Mach number of the shock entering gas at rest (rho 1, p 1/gamma)").above(1);
   s.real("vortex_strength", 5.0, "vortex: strength beta").above(0);
+  s.reals("density_wave", std::vector<double>{0, 0},
+          "riemann: density of the right state times 1 + a sin(k s), s the distance from the plane (Shu-Osher)")
+      .of_length(2);
+  s.reals("quadrants", std::vector<double>(16, 1.0),
+          "quadrants: rho, u, v, p of x>cx y>cy, x<cx y>cy, x<cx y<cy, x>cx y<cy (16 numbers)")
+      .of_length(16);
 }
 
 std::unique_ptr<io::System> FluidSystem::create(const Scene& scene) {

@@ -19,7 +19,7 @@
 //     dq_i/dt += [ F_{i+1/2} - F_{i-1/2} ] / h,   F_{i+1/2} = k lambda_{i+1/2} s_{i+1/2} (q_{i+1} - q_i),
 //     s_{i+1/2} = max(0, max_{j=i-1..i+2} psi_j - psi_0),
 //     psi_j = max over (p, rho) of |f_{j+1} - 2 f_j + f_{j-1}| / (f_{j+1} + 2 f_j + f_{j-1}),
-// lambda the largest |u_a| + c of the two points. psi is O(h^2) in smooth flow, so below the
+// lambda the largest |u_a| + c of the two points, k s capped at 1/2 (Rusanov). psi is O(h^2) in smooth flow, so below the
 // threshold psi_0 smooth regions get no dissipation at all and keep 4th order.
 #include <algorithm>
 #include <array>
@@ -31,6 +31,8 @@ namespace grainwave::fluid {
 /// Weights of the 4th-order central first derivative at offsets +1 and +2 (antisymmetric).
 inline constexpr double kCentral1 = 2.0 / 3.0;
 inline constexpr double kCentral2 = -1.0 / 12.0;
+/// Largest dissipation coefficient, in units of lambda (the Rusanov flux).
+inline constexpr double kMaxDissipation = 0.5;
 /// Ghost layers the split convection and the dissipation read on each side.
 inline constexpr int kStencilReach = 3;
 
@@ -103,8 +105,10 @@ inline void add_shock_dissipation(const std::array<const double*, Dim + 2>& q, c
   const double s_left = std::max(0.0, std::max(psi_mid, psi[i - 2 * stride]) - threshold);
   const double s_right = std::max(0.0, std::max(psi_mid, psi[i + 2 * stride]) - threshold);
   if (s_left == 0 && s_right == 0) return;
-  const double e_left = coefficient * s_left * std::max(wave[i - stride], wave[i]);
-  const double e_right = coefficient * s_right * std::max(wave[i], wave[i + stride]);
+  // Capped at the Rusanov (local Lax-Friedrichs) level lambda / 2: more is no more robust and
+  // would leave the explicit RK stability region at the CFL step.
+  const double e_left = std::min(coefficient * s_left, kMaxDissipation) * std::max(wave[i - stride], wave[i]);
+  const double e_right = std::min(coefficient * s_right, kMaxDissipation) * std::max(wave[i], wave[i + stride]);
   for (int f = 0; f < Dim + 2; ++f) {
     const double* qf = q[static_cast<std::size_t>(f)];
     out[f] += inv_h * (e_right * (qf[i + stride] - qf[i]) - e_left * (qf[i] - qf[i - stride]));
