@@ -1,6 +1,7 @@
 #include "app/Compose.hpp"
 
 #include "app/Simulation.hpp"
+#include "fluid/FluidSystem.hpp"
 #include "particles/ParticleSystem.hpp"
 #include "wavelet/WaveletSystem.hpp"
 #include "particles/dem/DemSystem.hpp"
@@ -14,6 +15,7 @@ const SceneSchema& scene_schema() {
     particles::ParticleSystem::declare(s);
     wavelet::WaveletSystem::declare(s);
     particles::dem::DemSystem::declare(s);
+    fluid::FluidSystem::declare(s);
     return s;
   }();
   return schema;
@@ -21,10 +23,12 @@ const SceneSchema& scene_schema() {
 
 std::unique_ptr<io::System> compose_system(const Scene& scene) {
   if (scene.has("particles")) return std::make_unique<particles::ParticleSystem>(scene);
+  if (scene.has("fluid")) return fluid::FluidSystem::create(scene);
   if (scene.has("wavelet")) return wavelet::WaveletSystem::create(scene);
   if (scene.has("dem")) return std::make_unique<particles::dem::DemSystem>(scene);
   throw InputError({scene.file(), 0}, "",
-                   "the scene declares no physics to run: add a [particles], [dem] or [wavelet] section",
+                   "the scene declares no physics to run: add a [fluid], [particles], [dem] or "
+                   "[wavelet] section",
                    "see docs/scene-reference.md");
 }
 

@@ -122,8 +122,9 @@ std::array<double, 4> isentropic_vortex(double dx, double dy, double beta, doubl
   const double r2 = dx * dx + dy * dy;
   const double bump = std::exp(0.5 * (1 - r2));
   const double du = beta / (2 * std::numbers::pi) * bump;
-  const double T = 1 - (gamma - 1) * beta * beta / (8 * gamma * std::numbers::pi * std::numbers::pi) *
-                           bump * bump;
+  // Radial equilibrium dp/dr = rho u_theta^2 / r with p = rho T / gamma and p / rho^gamma fixed
+  // gives dT/dr = (gamma - 1) u_theta^2 / r: no 1/gamma here, unlike the p = rho T scaling.
+  const double T = 1 - (gamma - 1) * beta * beta / (8 * std::numbers::pi * std::numbers::pi) * bump * bump;
   const double rho = std::pow(T, 1 / (gamma - 1));
   return {rho, u_inf - du * dy, v_inf + du * dx, rho * T / gamma};
 }

@@ -93,3 +93,15 @@ TEST(IsentropicVortex, FarFieldIsTheUniformFlowAndEntropyIsConstant) {
     EXPECT_NEAR(w[3] / std::pow(w[0], 1.4), 1 / 1.4, 1e-13);
   }
 }
+
+TEST(IsentropicVortex, PressureGradientBalancesTheCentripetalAcceleration) {
+  // A steady solution of the Euler equations: dp/dr = rho u_theta^2 / r along a ray.
+  const double gamma = 1.4, beta = 5, dr = 1e-5;
+  for (double r : {0.3, 0.8, 1.5, 2.5}) {
+    const auto w = gf::isentropic_vortex(r, 0, beta, 0, 0, gamma);
+    const double dpdr = (gf::isentropic_vortex(r + dr, 0, beta, 0, 0, gamma)[3] -
+                         gf::isentropic_vortex(r - dr, 0, beta, 0, 0, gamma)[3]) / (2 * dr);
+    const double u_theta = w[2];  // on the +x axis the swirl is the y velocity
+    EXPECT_NEAR(dpdr, w[0] * u_theta * u_theta / r, 1e-8) << "r = " << r;
+  }
+}

@@ -1,0 +1,49 @@
+#pragma once
+// Explicit Runge-Kutta time integration of dy/dt = f(t, y) through SUNDIALS ARKODE (ERKStep),
+// for a state whose length changes when the grid adapts: the integrator is created once and
+// resized (ERKStepResize) when the number of local unknowns changes, reset otherwise, never
+// rebuilt. Two modes:
+//   - fixed step (the default): one step of exactly the driver's dt (the CFL step), with
+//     classical RK4 or the three-stage strong-stability-preserving RK3 of Shu & Osher (1988);
+//   - error control: ARKODE's embedded pair (Zonneveld 5(3)4) takes as many internal steps as
+//     rtol/atol require to cover the driver's dt.
+// The state vector is an N_Vector_Parallel over the run's communicator, so norms for error
+// control are global and 1 and 2 ranks take the same internal steps.
+#include <mpi.h>
+
+#include <cstddef>
+#include <functional>
+#include <span>
+#include <string>
+
+namespace grainwave::fluid {
+
+enum class TimeScheme { kRk4, kSspRk3, kErrorControlled };
+
+class ErkIntegrator {
+ public:
+  /// f(t, y, ydot): the right-hand side; it must not throw (errors are reported by return < 0).
+  using Rhs = std::function<int(double, std::span<const double>, std::span<double>)>;
+
+  ErkIntegrator(MPI_Comm comm, TimeScheme scheme, double rtol, double atol, Rhs rhs);
+  ~ErkIntegrator();
+  ErkIntegrator(const ErkIntegrator&) = delete;
+  ErkIntegrator& operator=(const ErkIntegrator&) = delete;
+
+  /// The state vector, sized for `local_size` unknowns on this rank (contents kept only if the
+  /// size did not change). Fill it, then call step().
+  std::span<double> state(std::size_t local_size);
+  /// Advances the state from t to t + dt (after the caller filled state()); returns the ARKODE
+  /// flag (< 0: failure) and leaves the result in state().
+  int step(double t, double dt);
+  /// Number of right-hand-side evaluations so far.
+  long rhs_evaluations() const;
+  std::string describe() const;
+
+  struct Impl;  ///< ARKODE state (opaque: keeps SUNDIALS headers out of this one)
+
+ private:
+  Impl* impl_;
+};
+
+}  // namespace grainwave::fluid

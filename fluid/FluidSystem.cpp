@@ -1,0 +1,892 @@
+#include "fluid/FluidSystem.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <limits>
+
+#include "core/Error.hpp"
+#include "core/Mpi.hpp"
+#include "fluid/ErkIntegrator.hpp"
+#include "fluid/ExactSolutions.hpp"
+#include "fluid/FluidBoundaries.hpp"
+#include "fluid/IdealGas.hpp"
+#include "fluid/SplitConvection.hpp"
+#include "io/AtomicFile.hpp"
+#include "io/Xdmf.hpp"
+#include "wavelet/AdaptiveGrid.hpp"
+
+namespace grainwave::fluid {
+
+namespace {
+
+using wavelet::AdaptiveGrid;
+
+template <int Dim>
+std::array<double, Dim> head(const std::vector<double>& v) {
+  std::array<double, Dim> out{};
+  for (int a = 0; a < Dim; ++a) out[static_cast<std::size_t>(a)] = v[static_cast<std::size_t>(a)];
+  return out;
+}
+
+enum class InitialKind { kUniform, kRiemann, kShock, kVortex, kQuadrants };
+
+/// The initial state and, where one exists, the exact solution at time t.
+template <int Dim>
+struct InitialCondition {
+  InitialKind kind = InitialKind::kUniform;
+  double gamma = 1.4;
+  RiemannState left{1, 0, 1}, right{1, 0, 1};
+  std::array<double, Dim> normal{}, centre{}, velocity{}, length{};
+  std::array<bool, Dim> periodic{};
+  double shock_mach = 2, vortex_strength = 5;
+  std::array<double, 2> density_wave{};          ///< amplitude, wavenumber on the right state (Shu-Osher)
+  std::array<std::array<double, 4>, 4> quadrants{};  ///< (rho, u, v, p) of the four 2D quadrants
+
+  double along_normal(const std::array<double, Dim>& x) const {
+    double s = 0;
+    for (int a = 0; a < Dim; ++a)
+      s += (x[static_cast<std::size_t>(a)] - centre[static_cast<std::size_t>(a)]) * normal[static_cast<std::size_t>(a)];
+    return s;
+  }
+  Primitive<Dim> with_normal_velocity(const RiemannState& s) const {
+    Primitive<Dim> w;
+    w.rho = s.rho;
+    w.p = s.p;
+    for (int a = 0; a < Dim; ++a) w.u[static_cast<std::size_t>(a)] = s.u * normal[static_cast<std::size_t>(a)];
+    return w;
+  }
+  /// Gas ahead of the planar shock (rho, p) = (1, 1/gamma) at rest: c = 1 in 002's scaling.
+  RiemannState ahead_of_shock() const { return {1, 0, 1 / gamma}; }
+  RiemannState behind_shock() const {
+    const auto jump = normal_shock(shock_mach, gamma);
+    return {jump.density_ratio, jump.velocity_over_c1, jump.pressure_ratio / gamma};
+  }
+  bool has_exact() const {
+    return (kind == InitialKind::kRiemann && density_wave[0] == 0) || kind == InitialKind::kVortex ||
+           kind == InitialKind::kUniform;
+  }
+
+  Primitive<Dim> at(const std::array<double, Dim>& x, double t) const {
+    switch (kind) {
+      case InitialKind::kUniform: return with_normal_velocity(left);
+      case InitialKind::kRiemann: {
+        const double s = along_normal(x);
+        if (t <= 0 && s >= 0 && density_wave[0] != 0) {
+          auto w = with_normal_velocity(right);
+          w.rho *= 1 + density_wave[0] * std::sin(density_wave[1] * s);
+          return w;
+        }
+        if (t <= 0) return with_normal_velocity(s < 0 ? left : right);
+        const ExactRiemannSolver solver(left, right, gamma);
+        return with_normal_velocity(solver.sample(s / t));
+      }
+      case InitialKind::kShock:  // moves along +normal into the gas ahead
+        return with_normal_velocity(along_normal(x) > 0 ? ahead_of_shock() : behind_shock());
+      case InitialKind::kQuadrants: {  // numbered counter-clockwise from x > cx, y > cy
+        const bool right_half = x[0] > centre[0];
+        const bool upper_half = Dim > 1 && x[static_cast<std::size_t>(Dim > 1)] > centre[static_cast<std::size_t>(Dim > 1)];
+        const auto& q = quadrants[upper_half ? (right_half ? 0 : 1) : (right_half ? 3 : 2)];
+        Primitive<Dim> w;
+        w.rho = q[0];
+        w.u[0] = q[1];
+        if constexpr (Dim > 1) w.u[1] = q[2];
+        w.p = q[3];
+        return w;
+      }
+      case InitialKind::kVortex: {
+        std::array<double, 2> d{};
+        for (int a = 0; a < std::min(Dim, 2); ++a) {
+          const auto au = static_cast<std::size_t>(a);
+          d[au] = x[au] - (centre[au] + velocity[au] * t);
+          if (periodic[au]) d[au] -= length[au] * std::round(d[au] / length[au]);
+        }
+        const double vy = Dim > 1 ? velocity[static_cast<std::size_t>(std::min(1, Dim - 1))] : 0.0;
+        const auto v = isentropic_vortex(d[0], d[1], vortex_strength, velocity[0], vy, gamma);
+        Primitive<Dim> w;
+        w.rho = v[0];
+        w.u[0] = v[1];
+        if constexpr (Dim > 1) w.u[1] = v[2];
+        w.p = v[3];
+        return w;
+      }
+    }
+    return {};
+  }
+};
+
+/// Totals and counters carried through checkpoints.
+struct RunStats {
+  double t = 0;
+  double mass0 = 0, energy0 = 0;
+  double point_rhs = 0;  ///< point-RHS evaluations on this rank
+  std::int64_t blocks_max = 0;
+};
+
+template <int Dim>
+class FluidModel : public io::System {
+ public:
+  static constexpr int kFields = Dim + 2;
+
+  explicit FluidModel(const Scene& scene);
+
+  std::string describe() const override;
+  double max_stable_dt() const override;
+  void advance(double t, double dt) override;
+  std::optional<std::string> check_state() const override;
+  void save_good_state() override {
+    good_ = std::make_unique<AdaptiveGrid<Dim>>(*grid_);
+    good_stats_ = stats_;
+  }
+  void restore_good_state() override {
+    grid_ = std::make_unique<AdaptiveGrid<Dim>>(*good_);
+    stats_ = good_stats_;
+    layout_changed();
+  }
+  std::vector<io::OutputGrid> write_output(io::Hdf5File& file, const std::string& file_name) override;
+  void write_checkpoint(io::Hdf5Group& group) override;
+  void read_checkpoint(const io::Hdf5Group& group) override;
+  void report(io::Json& counts, io::Json& metrics, double step_wall_s, long steps) const override;
+  std::size_t memory_bytes() const override { return 3 * grid_->memory_bytes(); }
+  std::string progress_note() const override { return fmt::format("blocks {}", grid_->global_blocks()); }
+
+ private:
+  int evaluate_rhs(std::span<const double> y, std::span<double> ydot);
+  void pack(std::span<double> y) const;
+  void unpack(std::span<const double> y);
+  void fill_boundary_ghosts();
+  void layout_changed();
+  std::array<double, 2> totals() const;  ///< global integrals of rho and E
+  double cell_volume(int level) const;
+  template <class F>
+  void for_interior(const AdaptiveGrid<Dim>& grid, F&& f) const;
+
+  wavelet::GridConfig<Dim> config_;
+  wavelet::ThresholdConfig threshold_;
+  bool adaptive_ = true;
+  int adapt_every_ = 1;
+  long steps_taken_ = 0;
+  std::array<std::array<BoundaryKind, 2>, Dim> boundary_{};
+  std::array<std::array<Conserved<Dim>, 2>, Dim> inflow_{};  ///< state held by inflow ghosts
+  double gamma_ = 1.4, cfl_ = 0.8;
+  bool shock_capturing_ = true;
+  double capturing_coefficient_ = 1.2, sensor_threshold_ = 0.001;
+  InitialCondition<Dim> initial_;
+  std::unique_ptr<AdaptiveGrid<Dim>> grid_, good_;
+  std::unique_ptr<ErkIntegrator> integrator_;
+  RunStats stats_, good_stats_;
+
+  // Per-block scratch (one block with ghosts), sized once: no allocation inside the RHS.
+  std::vector<std::ptrdiff_t> interior_at_;  // array index of each interior point
+  std::vector<double> rho_, p_, e_, wave_, psi_;
+  std::array<std::vector<double>, Dim> u_;
+};
+
+template <int Dim>
+FluidModel<Dim>::FluidModel(const Scene& scene) {
+  const auto& s = scene.section("fluid");
+  config_.lo = head<Dim>(s.reals("lo"));
+  config_.hi = head<Dim>(s.reals("hi"));
+  const auto& roots = s.integers("roots");
+  const auto& low = s.texts("boundary_low");
+  const auto& high = s.texts("boundary_high");
+  auto kind_of = [](const std::string& name) {
+    return name == "periodic" ? BoundaryKind::kPeriodic
+           : name == "slip_wall" ? BoundaryKind::kSlipWall
+           : name == "inflow"    ? BoundaryKind::kInflow
+                                 : BoundaryKind::kOutflow;
+  };
+  for (int a = 0; a < Dim; ++a) {
+    const auto au = static_cast<std::size_t>(a);
+    if (!(config_.hi[au] > config_.lo[au])) s.fail("hi", "the domain needs hi > lo along every axis");
+    config_.roots[au] = static_cast<int>(roots[au]);
+    boundary_[au] = {kind_of(low[au]), kind_of(high[au])};
+    if ((low[au] == "periodic") != (high[au] == "periodic"))
+      s.fail("boundary_high", fmt::format("axis {} is periodic on one side only", a));
+    config_.periodic[au] = low[au] == "periodic";
+  }
+  config_.block_size = static_cast<int>(s.integer("block_size"));
+  if (config_.block_size % 2 != 0) s.fail("block_size", "the block size must be even");
+  config_.min_level = static_cast<int>(s.integer("min_level"));
+  config_.max_level = static_cast<int>(s.integer("max_level"));
+  if (config_.min_level > config_.max_level) s.fail("min_level", "min_level must not exceed max_level");
+  config_.order = static_cast<int>(s.integer("order"));
+  if (config_.order != 4 && config_.order != 6) s.fail("order", "the interpolation order is 4 or 6");
+  config_.ghosts = std::max(config_.order - 1, kStencilReach);
+  config_.fields = {"rho"};
+  for (int a = 0; a < Dim; ++a) config_.fields.push_back(std::string("m") + "xyz"[a]);
+  config_.fields.push_back("E");
+
+  adaptive_ = s.flag("adaptive");
+  adapt_every_ = static_cast<int>(s.integer("adapt_every"));
+  threshold_.epsilon = s.real("epsilon");
+  threshold_.normalisation =
+      s.text("normalisation") == "absolute" ? wavelet::Normalisation::kAbsolute : wavelet::Normalisation::kLinf;
+  threshold_.groups.assign(static_cast<std::size_t>(kFields), 1);  // momentum components share a scale
+  threshold_.groups.front() = 0;
+  threshold_.groups.back() = 2;
+
+  gamma_ = s.real("gamma");
+  cfl_ = s.real("cfl");
+  shock_capturing_ = s.flag("shock_capturing");
+  capturing_coefficient_ = s.real("capturing_coefficient");
+  sensor_threshold_ = s.real("sensor_threshold");
+
+  const std::string initial = s.text("initial");
+  initial_.kind = initial == "riemann" ? InitialKind::kRiemann
+                  : initial == "shock" ? InitialKind::kShock
+                  : initial == "vortex" ? InitialKind::kVortex
+                  : initial == "quadrants" ? InitialKind::kQuadrants
+                                        : InitialKind::kUniform;
+  initial_.gamma = gamma_;
+  const auto& l = s.reals("left");
+  const auto& r = s.reals("right");
+  initial_.left = {l[0], l[1], l[2]};
+  initial_.right = {r[0], r[1], r[2]};
+  if (!(l[0] > 0 && l[2] > 0)) s.fail("left", "density and pressure must be positive");
+  if (!(r[0] > 0 && r[2] > 0)) s.fail("right", "density and pressure must be positive");
+  const auto n = s.reals("normal");
+  double norm = 0;
+  for (int a = 0; a < Dim; ++a) norm += n[static_cast<std::size_t>(a)] * n[static_cast<std::size_t>(a)];
+  if (!(norm > 0)) s.fail("normal", "the normal needs a non-zero component within the scene's dimension");
+  for (int a = 0; a < Dim; ++a) {
+    const auto au = static_cast<std::size_t>(a);
+    initial_.normal[au] = n[au] / std::sqrt(norm);
+    initial_.length[au] = config_.hi[au] - config_.lo[au];
+    initial_.periodic[au] = config_.periodic[au];
+  }
+  initial_.centre = head<Dim>(s.reals("centre"));
+  initial_.velocity = head<Dim>(s.reals("velocity"));
+  initial_.shock_mach = s.real("shock_mach");
+  initial_.vortex_strength = s.real("vortex_strength");
+  const auto wave = s.reals("density_wave");
+  initial_.density_wave = {wave[0], wave[1]};
+  const auto quadrants = s.reals("quadrants");
+  for (std::size_t k = 0; k < 16; ++k) initial_.quadrants[k / 4][k % 4] = quadrants[k];
+  if (initial_.kind == InitialKind::kQuadrants && Dim < 2) s.fail("initial", "four quadrants need dimension 2 or 3");
+  for (int a = 0; a < Dim; ++a)
+    for (int side = 0; side < 2; ++side) {
+      auto face = initial_.centre;
+      for (int b = 0; b < Dim; ++b) face[static_cast<std::size_t>(b)] = 0.5 * (config_.lo[static_cast<std::size_t>(b)] + config_.hi[static_cast<std::size_t>(b)]);
+      face[static_cast<std::size_t>(a)] = side ? config_.hi[static_cast<std::size_t>(a)] : config_.lo[static_cast<std::size_t>(a)];
+      inflow_[static_cast<std::size_t>(a)][static_cast<std::size_t>(side)] = to_conserved(initial_.at(face, 0.0), gamma_);
+    }
+  if (initial_.kind == InitialKind::kVortex && Dim < 2) s.fail("initial", "the isentropic vortex needs dimension 2 or 3");
+
+  const std::string scheme = s.text("time_integrator");
+  integrator_ = std::make_unique<ErkIntegrator>(
+      MPI_COMM_WORLD,
+      scheme == "rk4"      ? TimeScheme::kRk4
+      : scheme == "ssprk3" ? TimeScheme::kSspRk3
+                           : TimeScheme::kErrorControlled,
+      s.real("rtol"), s.real("atol"),
+      [this](double, std::span<const double> y, std::span<double> ydot) { return evaluate_rhs(y, ydot); });
+
+  try {
+    grid_ = std::make_unique<AdaptiveGrid<Dim>>(config_);
+  } catch (const std::invalid_argument& e) {
+    s.fail("block_size", e.what());
+  }
+  auto initial_state = [&](const auto& x, std::span<double> v) {
+    const auto q = to_conserved(initial_.at(x, 0.0), gamma_);
+    std::copy(q.begin(), q.end(), v.begin());
+  };
+  if (adaptive_) {
+    grid_->adapt_to_function(threshold_, initial_state);
+  } else {
+    grid_->refine_to_uniform();
+    grid_->sample(initial_state);
+    grid_->fill_ghosts();
+  }
+  layout_changed();
+  fill_boundary_ghosts();
+  const auto [mass, energy] = totals();
+  stats_.mass0 = mass;
+  stats_.energy0 = energy;
+}
+
+template <int Dim>
+void FluidModel<Dim>::layout_changed() {
+  const auto shape = grid_->layout().shape();
+  const std::size_t volume = shape.size();
+  if (rho_.size() == volume) return;
+  for (auto* v : {&rho_, &p_, &e_, &wave_, &psi_}) v->assign(volume, 0.0);
+  for (auto& v : u_) v.assign(volume, 0.0);
+  interior_at_.clear();
+  const int g = grid_->layout().ghosts, bs = config_.block_size;
+  for (std::size_t p = 0; p < grid_->points_per_block(); ++p) {
+    std::array<int, Dim> i{};
+    std::size_t rest = p;
+    for (int a = 0; a < Dim; ++a) {
+      i[static_cast<std::size_t>(a)] = static_cast<int>(rest % static_cast<std::size_t>(bs)) + g;
+      rest /= static_cast<std::size_t>(bs);
+    }
+    interior_at_.push_back(shape.index(i));
+  }
+}
+
+template <int Dim>
+double FluidModel<Dim>::cell_volume(int level) const {
+  const auto h = grid_->spacing(level);
+  double v = 1;
+  for (double x : h) v *= x;
+  return v;
+}
+
+template <int Dim>
+template <class F>
+void FluidModel<Dim>::for_interior(const AdaptiveGrid<Dim>& grid, F&& f) const {
+  // f(slot, array index, interior point number)
+  for (std::size_t s = 0; s < grid.local_blocks(); ++s)
+    for (std::size_t p = 0; p < interior_at_.size(); ++p) f(s, interior_at_[p], p);
+}
+
+template <int Dim>
+std::array<double, 2> FluidModel<Dim>::totals() const {
+  double mass = 0, energy = 0;
+  for (std::size_t s = 0; s < grid_->local_blocks(); ++s) {
+    const double dv = cell_volume(grid_->key(s).level);
+    const auto rho = grid_->block(0, s);
+    const auto E = grid_->block(kFields - 1, s);
+    double block_mass = 0, block_energy = 0;
+    for (const auto at : interior_at_) {
+      block_mass += rho[static_cast<std::size_t>(at)];
+      block_energy += E[static_cast<std::size_t>(at)];
+    }
+    mass += block_mass * dv;
+    energy += block_energy * dv;
+  }
+  return {mpi::sum(mass), mpi::sum(energy)};
+}
+
+template <int Dim>
+void FluidModel<Dim>::pack(std::span<double> y) const {
+  const std::size_t per_block = interior_at_.size();
+  for (std::size_t s = 0; s < grid_->local_blocks(); ++s)
+    for (int f = 0; f < kFields; ++f) {
+      const auto q = grid_->block(f, s);
+      double* out = y.data() + (s * kFields + static_cast<std::size_t>(f)) * per_block;
+      for (std::size_t p = 0; p < per_block; ++p) out[p] = q[static_cast<std::size_t>(interior_at_[p])];
+    }
+}
+
+template <int Dim>
+void FluidModel<Dim>::unpack(std::span<const double> y) {
+  const std::size_t per_block = interior_at_.size();
+  for (std::size_t s = 0; s < grid_->local_blocks(); ++s)
+    for (int f = 0; f < kFields; ++f) {
+      auto q = grid_->block(f, s);
+      const double* in = y.data() + (s * kFields + static_cast<std::size_t>(f)) * per_block;
+      for (std::size_t p = 0; p < per_block; ++p) q[static_cast<std::size_t>(interior_at_[p])] = in[p];
+    }
+}
+
+template <int Dim>
+void FluidModel<Dim>::fill_boundary_ghosts() {
+  const auto shape = grid_->layout().shape();
+  const int g = grid_->layout().ghosts, bs = config_.block_size;
+  std::array<double*, kFields> fields{};
+  for (std::size_t s = 0; s < grid_->local_blocks(); ++s) {
+    const auto key = grid_->key(s);
+    const auto c = key.coords();
+    for (int f = 0; f < kFields; ++f) fields[static_cast<std::size_t>(f)] = grid_->block(f, s).data();
+    for (int a = 0; a < Dim; ++a) {
+      const auto au = static_cast<std::size_t>(a);
+      if (config_.periodic[au]) continue;
+      const auto blocks_along = static_cast<std::uint32_t>(config_.roots[au]) << key.level;
+      if (c[au] == 0) fill_edge_ghosts<Dim>(fields, shape, bs, g, a, false, boundary_[au][0], inflow_[au][0]);
+      if (c[au] + 1 == blocks_along)
+        fill_edge_ghosts<Dim>(fields, shape, bs, g, a, true, boundary_[au][1], inflow_[au][1]);
+    }
+  }
+}
+
+template <int Dim>
+int FluidModel<Dim>::evaluate_rhs(std::span<const double> y, std::span<double> ydot) {
+  {
+    ScopedTimer timer(timers_, "rhs: ghosts");
+    unpack(y);
+    grid_->fill_ghosts();
+    fill_boundary_ghosts();
+  }
+  const auto shape = grid_->layout().shape();
+  const std::size_t volume = shape.size(), per_block = interior_at_.size();
+  const double gm1 = gamma_ - 1;
+  Stopwatch clock;
+  double convection_s = 0, capturing_s = 0;
+  BlockPrimitives<Dim> w{rho_.data(), {}, p_.data(), e_.data()};
+  for (int a = 0; a < Dim; ++a) w.u[static_cast<std::size_t>(a)] = u_[static_cast<std::size_t>(a)].data();
+  for (std::size_t s = 0; s < grid_->local_blocks(); ++s) {
+    const double start = clock.seconds();
+    std::array<const double*, kFields> q{};
+    for (int f = 0; f < kFields; ++f) q[static_cast<std::size_t>(f)] = grid_->block(f, s).data();
+    // Primitives at every point of the block, ghosts included (the stencils read them).
+    for (std::size_t at = 0; at < volume; ++at) {
+      const double rho = q[0][at], inv_rho = 1 / rho;
+      double kinetic = 0;
+      for (int a = 0; a < Dim; ++a) {
+        const double ua = q[static_cast<std::size_t>(a) + 1][at] * inv_rho;
+        u_[static_cast<std::size_t>(a)][at] = ua;
+        kinetic += ua * ua;
+      }
+      const double E = q[kFields - 1][at];
+      rho_[at] = rho;
+      e_[at] = E * inv_rho;
+      p_[at] = gm1 * (E - 0.5 * rho * kinetic);
+    }
+    double* out = ydot.data() + s * kFields * per_block;
+    std::array<double, kFields> point{};
+    const auto h = grid_->spacing(grid_->key(s).level);
+    for (std::size_t p = 0; p < per_block; ++p) {
+      point.fill(0);
+      for (int a = 0; a < Dim; ++a)
+        add_split_convection<Dim>(w, interior_at_[p], shape.stride(a), a, 1 / h[static_cast<std::size_t>(a)], point.data());
+      for (int f = 0; f < kFields; ++f) out[static_cast<std::size_t>(f) * per_block + p] = point[static_cast<std::size_t>(f)];
+    }
+    const double mid = clock.seconds();
+    convection_s += mid - start;
+    if (!shock_capturing_) continue;
+    for (int a = 0; a < Dim; ++a) {
+      const auto au = static_cast<std::size_t>(a);
+      const std::ptrdiff_t stride = shape.stride(a);
+      const int extent = shape.extent[au];
+      for (std::size_t at = 0; at < volume; ++at) {
+        const int i = static_cast<int>((static_cast<std::ptrdiff_t>(at) / stride) % extent);
+        wave_[at] = std::abs(u_[au][at]) + std::sqrt(std::abs(gamma_ * p_[at] / rho_[at]));
+        psi_[at] = (i == 0 || i == extent - 1)
+                       ? 0.0
+                       : std::max(second_difference_sensor(p_.data(), static_cast<std::ptrdiff_t>(at), stride),
+                                  second_difference_sensor(rho_.data(), static_cast<std::ptrdiff_t>(at), stride));
+      }
+      const double inv_h = 1 / h[au];
+      for (std::size_t p = 0; p < per_block; ++p) {
+        point.fill(0);
+        add_shock_dissipation<Dim>(q, psi_.data(), wave_.data(), interior_at_[p], stride, capturing_coefficient_,
+                                   sensor_threshold_, inv_h, point.data());
+        for (int f = 0; f < kFields; ++f) out[static_cast<std::size_t>(f) * per_block + p] += point[static_cast<std::size_t>(f)];
+      }
+    }
+    capturing_s += clock.seconds() - mid;
+  }
+  timers_.add("rhs: convection", convection_s);
+  if (shock_capturing_) timers_.add("rhs: capturing", capturing_s);
+  stats_.point_rhs += static_cast<double>(grid_->local_blocks() * per_block);
+  return 0;
+}
+
+template <int Dim>
+std::string FluidModel<Dim>::describe() const {
+  return fmt::format("fluid: {}D Euler, 4th-order KEP split central differences, {}, {}, blocks of {}^{}, levels "
+                     "{}..{}, {}, {} blocks",
+                     Dim, shock_capturing_ ? "sensor-localised shock capturing" : "no shock capturing",
+                     integrator_->describe(), config_.block_size, Dim, config_.min_level, config_.max_level,
+                     adaptive_ ? fmt::format("adapted every {} step(s), eps {}", adapt_every_, threshold_.epsilon)
+                               : std::string("uniform"),
+                     grid_->global_blocks());
+}
+
+template <int Dim>
+double FluidModel<Dim>::max_stable_dt() const {
+  // Explicit RK with 4th-order central differences: dt <= cfl / max sum_a (|u_a| + c) / h_a.
+  double rate = 0;
+  for (std::size_t s = 0; s < grid_->local_blocks(); ++s) {
+    const auto h = grid_->spacing(grid_->key(s).level);
+    std::array<std::span<const double>, kFields> q;
+    for (int f = 0; f < kFields; ++f) q[static_cast<std::size_t>(f)] = grid_->block(f, s);
+    for (const auto at : interior_at_) {
+      Conserved<Dim> point;
+      for (int f = 0; f < kFields; ++f) point[static_cast<std::size_t>(f)] = q[static_cast<std::size_t>(f)][static_cast<std::size_t>(at)];
+      const auto w = to_primitive<Dim>(point, gamma_);
+      const double c = std::sqrt(std::abs(gamma_ * w.p / w.rho));
+      double r = 0;
+      for (int a = 0; a < Dim; ++a) r += (std::abs(w.u[static_cast<std::size_t>(a)]) + c) / h[static_cast<std::size_t>(a)];
+      if (std::isfinite(r)) rate = std::max(rate, r);
+    }
+  }
+  rate = mpi::max(rate);
+  return rate > 0 ? cfl_ / rate : std::numeric_limits<double>::infinity();
+}
+
+template <int Dim>
+void FluidModel<Dim>::advance(double t, double dt) {
+  const bool adapt_now = adaptive_ && steps_taken_ % adapt_every_ == 0;
+  if (adapt_now) {
+    ScopedTimer timer(timers_, "refine");
+    grid_->adapt(threshold_, wavelet::AdaptPass::kRefine);
+    layout_changed();
+  }
+  int flag = 0;
+  {
+    ScopedTimer timer(timers_, "integrate");
+    auto y = integrator_->state(grid_->local_blocks() * interior_at_.size() * kFields);
+    pack(y);
+    flag = integrator_->step(t, dt);
+    unpack(y);  // ARKODE wrote the result into the same vector
+  }
+  ++steps_taken_;
+  stats_.t = t + dt;
+  if (flag < 0) throw NumericalFailure(fmt::format("the time integrator failed (ARKODE flag {})", flag), "", t + dt, 0);
+  grid_->fill_ghosts();
+  if (adapt_now) {
+    ScopedTimer timer(timers_, "coarsen");
+    grid_->adapt(threshold_, wavelet::AdaptPass::kCoarsen);
+  }
+  fill_boundary_ghosts();
+  stats_.blocks_max = std::max<std::int64_t>(stats_.blocks_max, static_cast<std::int64_t>(grid_->global_blocks()));
+}
+
+template <int Dim>
+std::optional<std::string> FluidModel<Dim>::check_state() const {
+  for (std::size_t s = 0; s < grid_->local_blocks(); ++s) {
+    std::array<std::span<const double>, kFields> q;
+    for (int f = 0; f < kFields; ++f) q[static_cast<std::size_t>(f)] = grid_->block(f, s);
+    for (std::size_t p = 0; p < interior_at_.size(); ++p) {
+      const auto at = static_cast<std::size_t>(interior_at_[p]);
+      Conserved<Dim> point;
+      for (int f = 0; f < kFields; ++f) point[static_cast<std::size_t>(f)] = q[static_cast<std::size_t>(f)][at];
+      const auto w = to_primitive<Dim>(point, gamma_);
+      const char* what = !std::isfinite(w.rho) || !std::isfinite(w.p) ? "non-finite state"
+                         : w.rho <= 0                                   ? "negative density"
+                         : w.p <= 0                                     ? "negative pressure"
+                                                                        : nullptr;
+      if (!what) continue;
+      const auto shape = grid_->layout().shape();
+      auto i = shape.coords(static_cast<std::ptrdiff_t>(at));
+      for (int& c : i) c -= grid_->layout().ghosts;
+      const auto x = grid_->position(s, i);
+      std::string where;
+      for (double c : x) where += fmt::format("{}{:.6g}", where.empty() ? "" : ", ", c);
+      return fmt::format("{} (rho = {:.4g}, p = {:.4g}) at x = ({}) in a level-{} block", what, w.rho, w.p, where,
+                         grid_->key(s).level);
+    }
+  }
+  return std::nullopt;
+}
+
+/// This rank's interior points of one derived quantity, block by block (rows of Bs^Dim).
+template <int Dim, class F>
+std::vector<double> interior_rows(const AdaptiveGrid<Dim>& grid, const std::vector<std::ptrdiff_t>& interior_at, F&& value) {
+  std::vector<double> rows;
+  rows.reserve(grid.local_blocks() * interior_at.size());
+  for (std::size_t s = 0; s < grid.local_blocks(); ++s)
+    for (const auto at : interior_at) rows.push_back(value(s, static_cast<std::size_t>(at)));
+  return rows;
+}
+
+template <int Dim>
+std::vector<io::OutputGrid> FluidModel<Dim>::write_output(io::Hdf5File& file, const std::string& file_name) {
+  ScopedTimer timer(timers_, "output");
+  auto g = file.root().create_group("fluid");
+  const std::size_t local = grid_->local_blocks(), per_block = grid_->points_per_block();
+  auto primitive = [&](std::size_t s, std::size_t at) {
+    Conserved<Dim> q;
+    for (int f = 0; f < kFields; ++f) q[static_cast<std::size_t>(f)] = grid_->block(f, s)[at];
+    return to_primitive<Dim>(q, gamma_);
+  };
+  std::vector<std::pair<std::string, std::string>> arrays;
+  g.write_rows("rho", interior_rows(*grid_, interior_at_, [&](std::size_t s, std::size_t at) { return primitive(s, at).rho; }).data(),
+               local, per_block);
+  arrays.push_back({"rho", "Float"});
+  for (int a = 0; a < Dim; ++a) {
+    const std::string name(1, "uvw"[a]);
+    g.write_rows(name,
+                 interior_rows(*grid_, interior_at_,
+                               [&](std::size_t s, std::size_t at) { return primitive(s, at).u[static_cast<std::size_t>(a)]; })
+                     .data(),
+                 local, per_block);
+    arrays.push_back({name, "Float"});
+  }
+  g.write_rows("p", interior_rows(*grid_, interior_at_, [&](std::size_t s, std::size_t at) { return primitive(s, at).p; }).data(),
+               local, per_block);
+  arrays.push_back({"p", "Float"});
+  std::vector<std::int64_t> level;
+  level.reserve(local * per_block);
+  for (std::size_t s = 0; s < local; ++s) level.insert(level.end(), per_block, grid_->key(s).level);
+  g.write_rows("level", level.data(), local, per_block);
+  arrays.push_back({"level", "Int"});
+  g.set_attribute("dimension", static_cast<std::int64_t>(Dim));
+  g.set_attribute("blocks", static_cast<std::int64_t>(grid_->global_blocks()));
+  g.set_attribute("t", stats_.t);
+
+  // One uniform patch per block, its node arrays rows of the [blocks, Bs^Dim] datasets; the
+  // patches go to a sidecar file that the time series includes (1D shows as 2D, one point thick).
+  const std::filesystem::path sidecar = std::filesystem::path(file_name).stem().string() + ".fluid.xmf";
+  if (mpi::is_root()) {
+    const int shown = std::max(Dim, 2), bs = config_.block_size;
+    const std::size_t n = grid_->global_blocks();
+    std::vector<std::string> patches;
+    patches.reserve(n);
+    for (std::size_t leaf = 0; leaf < n; ++leaf) {
+      const auto key = grid_->forest().leaves()[leaf];
+      const auto x0 = grid_->origin(key);
+      const auto h = grid_->spacing(key.level);
+      std::string dims, origin, step;
+      for (int a = shown - 1; a >= 0; --a) {
+        const bool real = a < Dim;
+        const auto au = static_cast<std::size_t>(std::min(a, Dim - 1));
+        const char* sep = dims.empty() ? "" : " ";
+        dims += fmt::format("{}{}", sep, real ? bs : 1);
+        origin += fmt::format("{}{}", sep, real ? x0[au] : 0.0);
+        step += fmt::format("{}{}", sep, real ? h[au] : 1.0);
+      }
+      std::string xml = fmt::format(
+          "    <Grid Name=\"block_{}\" GridType=\"Uniform\">\n"
+          "      <Topology TopologyType=\"{}DCoRectMesh\" Dimensions=\"{}\"/>\n"
+          "      <Geometry GeometryType=\"{}\">\n"
+          "        <DataItem Dimensions=\"{}\" Format=\"XML\">{}</DataItem>\n"
+          "        <DataItem Dimensions=\"{}\" Format=\"XML\">{}</DataItem>\n"
+          "      </Geometry>\n",
+          leaf, shown, dims, shown == 3 ? "ORIGIN_DXDYDZ" : "ORIGIN_DXDY", shown, origin, shown, step);
+      for (const auto& [name, type] : arrays)
+        xml += fmt::format(
+            "      <Attribute Name=\"{0}\" AttributeType=\"Scalar\" Center=\"Node\">\n"
+            "        <DataItem ItemType=\"HyperSlab\" Dimensions=\"{1}\" Type=\"HyperSlab\">\n"
+            "          <DataItem Dimensions=\"3 2\" Format=\"XML\">{2} 0 1 1 1 {3}</DataItem>\n"
+            "          <DataItem Dimensions=\"{4} {3}\" NumberType=\"{5}\" Precision=\"8\" "
+            "Format=\"HDF\">{6}:/fluid/{0}</DataItem>\n"
+            "        </DataItem>\n"
+            "      </Attribute>\n",
+            name, dims, leaf, per_block, n, type, file_name);
+      patches.push_back(xml + "    </Grid>\n");
+    }
+    io::write_text_atomically(file.path().parent_path() / sidecar,
+                              "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"3.0\">\n  <Domain>\n" +
+                                  io::spatial_collection("blocks", patches) + "  </Domain>\n</Xdmf>\n");
+  }
+  return {{"fields", fmt::format("    <Grid Name=\"fluid\" GridType=\"Collection\" CollectionType=\"Spatial\">\n"
+                                 "      <xi:include xmlns:xi=\"http://www.w3.org/2001/XInclude\" href=\"{}\" "
+                                 "xpointer=\"xpointer(//Xdmf/Domain/Grid)\"/>\n"
+                                 "    </Grid>\n",
+                                 sidecar.string())}};
+}
+
+template <int Dim>
+void FluidModel<Dim>::write_checkpoint(io::Hdf5Group& group) {
+  auto g = group.create_group("fluid");
+  std::vector<std::int64_t> level, morton;
+  for (std::size_t s = 0; s < grid_->local_blocks(); ++s) {
+    level.push_back(grid_->key(s).level);
+    morton.push_back(static_cast<std::int64_t>(grid_->key(s).morton));  // bit pattern kept
+  }
+  g.write_rows("key_level", level.data(), level.size());
+  g.write_rows("key_morton", morton.data(), morton.size());
+  for (int f = 0; f < kFields; ++f) {
+    const auto rows = interior_rows(*grid_, interior_at_, [&](std::size_t s, std::size_t at) { return grid_->block(f, s)[at]; });
+    g.write_rows(config_.fields[static_cast<std::size_t>(f)], rows.data(), grid_->local_blocks(), grid_->points_per_block());
+  }
+  g.set_attribute("t", stats_.t);
+  g.set_attribute("mass0", stats_.mass0);
+  g.set_attribute("energy0", stats_.energy0);
+  g.set_attribute("point_rhs", mpi::sum(stats_.point_rhs));
+  g.set_attribute("blocks_max", stats_.blocks_max);
+  g.set_attribute("steps_taken", static_cast<std::int64_t>(steps_taken_));
+}
+
+template <int Dim>
+void FluidModel<Dim>::read_checkpoint(const io::Hdf5Group& group) {
+  const auto g = group.open_group("fluid");
+  const auto n = g.shape("key_level")[0];
+  const auto level = g.read_rows_integer("key_level", 0, n);
+  const auto morton = g.read_rows_integer("key_morton", 0, n);
+  std::vector<wavelet::BlockKey<Dim>> keys(n);
+  for (std::size_t k = 0; k < n; ++k) keys[k] = {static_cast<int>(level[k]), static_cast<std::uint64_t>(morton[k])};
+  grid_->rebuild(keys);
+  layout_changed();
+  for (int f = 0; f < kFields; ++f) {
+    const auto rows = g.read_rows_real(config_.fields[static_cast<std::size_t>(f)], grid_->first_leaf(), grid_->local_blocks());
+    std::size_t k = 0;
+    for (std::size_t s = 0; s < grid_->local_blocks(); ++s) {
+      auto q = grid_->block(f, s);
+      for (const auto at : interior_at_) q[static_cast<std::size_t>(at)] = rows[k++];
+    }
+  }
+  grid_->fill_ghosts();
+  fill_boundary_ghosts();
+  stats_.t = g.real_attribute("t");
+  stats_.mass0 = g.real_attribute("mass0");
+  stats_.energy0 = g.real_attribute("energy0");
+  stats_.point_rhs = mpi::is_root() ? g.real_attribute("point_rhs") : 0.0;
+  stats_.blocks_max = g.integer_attribute("blocks_max");
+  steps_taken_ = static_cast<long>(g.integer_attribute("steps_taken"));
+}
+
+template <int Dim>
+void FluidModel<Dim>::report(io::Json& counts, io::Json& metrics, double step_wall_s, long) const {
+  const double uniform = grid_->uniform_points();
+  const auto blocks = static_cast<std::int64_t>(grid_->global_blocks());
+  const double points = static_cast<double>(blocks) * static_cast<double>(grid_->points_per_block());
+  counts.set("blocks", blocks);
+  counts.set("points", static_cast<std::int64_t>(points));
+  int lmin = config_.max_level, lmax = 0;
+  for (const auto& k : grid_->forest().leaves()) {
+    lmin = std::min(lmin, k.level);
+    lmax = std::max(lmax, k.level);
+  }
+  counts.set("level_min", lmin);
+  counts.set("level_max", lmax);
+  counts.set("rhs_evaluations", integrator_->rhs_evaluations());
+
+  const auto [mass, energy] = totals();
+  metrics.set("mass_drift", std::abs(mass - stats_.mass0) / std::abs(stats_.mass0));
+  metrics.set("energy_drift", std::abs(energy - stats_.energy0) / std::abs(stats_.energy0));
+  metrics.set("points_fraction", points / uniform);
+  metrics.set("significant_fraction", static_cast<double>(grid_->significant_points(threshold_)) / uniform);
+  metrics.set("blocks_max", stats_.blocks_max);
+  const double point_rhs = mpi::sum(stats_.point_rhs);
+  metrics.set("point_rhs_per_s", step_wall_s > 0 ? point_rhs / step_wall_s : 0.0);
+
+  // Errors against the exact solution on the finest uniform grid (reconstructed by prediction).
+  AdaptiveGrid<Dim> fine(*grid_);
+  fine.refine_to_uniform();
+  const auto shape = fine.layout().shape();
+  const int g = fine.layout().ghosts;
+  auto primitive_at = [&](std::size_t s, std::size_t at) {
+    Conserved<Dim> q;
+    for (int f = 0; f < kFields; ++f) q[static_cast<std::size_t>(f)] = fine.block(f, s)[at];
+    return to_primitive<Dim>(q, gamma_);
+  };
+  auto position_of = [&](std::size_t s, std::ptrdiff_t at) {
+    auto i = shape.coords(at);
+    for (int& c : i) c -= g;
+    return fine.position(s, i);
+  };
+  if (initial_.has_exact()) {
+    ExactRiemannSolver solver(initial_.left, initial_.right, gamma_);
+    auto exact = [&](const std::array<double, Dim>& x) {
+      if (initial_.kind != InitialKind::kRiemann || stats_.t <= 0) return initial_.at(x, stats_.t);
+      return initial_.with_normal_velocity(solver.sample(initial_.along_normal(x) / stats_.t));
+    };
+    // The compared velocity: along the normal for Riemann problems, u_x otherwise.
+    auto velocity = [&](const Primitive<Dim>& w) {
+      if (initial_.kind != InitialKind::kRiemann) return w.u[0];
+      double un = 0;
+      for (int a = 0; a < Dim; ++a) un += w.u[static_cast<std::size_t>(a)] * initial_.normal[static_cast<std::size_t>(a)];
+      return un;
+    };
+    std::array<double, 3> l1{}, l2{}, linf{};
+    double count = 0, overshoot = 0;
+    const double h = fine.spacing(config_.max_level)[0];
+    const double jump = std::abs(initial_.left.rho - initial_.right.rho);
+    for (std::size_t s = 0; s < fine.local_blocks(); ++s)
+      for (const auto at : interior_at_) {
+        const auto x = position_of(s, at);
+        const auto w = primitive_at(s, static_cast<std::size_t>(at));
+        const auto e = exact(x);
+        const std::array<double, 3> err = {w.rho - e.rho, velocity(w) - velocity(e), w.p - e.p};
+        for (std::size_t k = 0; k < 3; ++k) {
+          l1[k] += std::abs(err[k]);
+          l2[k] += err[k] * err[k];
+          linf[k] = std::max(linf[k], std::abs(err[k]));
+        }
+        count += 1;
+        if (initial_.kind == InitialKind::kRiemann && stats_.t > 0 && jump > 0) {
+          // New extrema: density outside the exact solution's range over one finest block around
+          // the point (the width a captured shock or contact may smear over).
+          double lo = e.rho, hi = e.rho;
+          const double s0 = initial_.along_normal(x);
+          for (int k = -config_.block_size; k <= config_.block_size; ++k) {
+            const double r = solver.sample((s0 + k * h) / stats_.t).rho;
+            lo = std::min(lo, r);
+            hi = std::max(hi, r);
+          }
+          overshoot = std::max(overshoot, std::max(w.rho - hi, lo - w.rho) / jump);
+        }
+      }
+    count = mpi::sum(count);
+    const char* names[3] = {"rho", "u", "p"};
+    for (std::size_t k = 0; k < 3; ++k) {
+      metrics.set(fmt::format("L1_{}", names[k]), mpi::sum(l1[k]) / count);
+      metrics.set(fmt::format("L2_{}", names[k]), std::sqrt(mpi::sum(l2[k]) / count));
+      metrics.set(fmt::format("Linf_{}", names[k]), mpi::max(linf[k]));
+    }
+    if (initial_.kind == InitialKind::kRiemann) metrics.set("overshoot_rho", std::max(0.0, mpi::max(overshoot)));
+  }
+  if (initial_.kind == InitialKind::kShock) {
+    // Pressure on the low-x wall (mean over its points) after the reflection, against p5/p1.
+    double sum = 0, n = 0;
+    for (std::size_t s = 0; s < grid_->local_blocks(); ++s)
+      for (const auto at : interior_at_) {
+        const auto x = position_of(s, at);
+        if (std::abs(x[0] - config_.lo[0]) > 1e-12 * initial_.length[0]) continue;
+        sum += primitive_at(s, static_cast<std::size_t>(at)).p;
+        n += 1;
+      }
+    const double ratio = mpi::sum(sum) / mpi::sum(n) / initial_.ahead_of_shock().p;
+    const double exact = reflected_pressure_ratio(initial_.shock_mach, gamma_);
+    metrics.set("p_reflected_over_p1", ratio);
+    metrics.set("p_reflected_over_p1_exact", exact);
+    metrics.set("p_reflected_relative_error", std::abs(ratio - exact) / exact);
+  }
+}
+
+const std::vector<std::string> kBoundaries = {"periodic", "slip_wall", "outflow", "inflow"};
+
+}  // namespace
+
+void FluidSystem::declare(SceneSchema& schema) {
+  auto& s = schema.section("fluid",
+                           "Compressible Euler flow on the wavelet-adaptive grid (4th-order split central "
+                           "differences, localised shock capturing, ARKODE explicit RK); builds the fluid system.");
+  s.integer("dimension", 1, "1, 2 or 3").in_range(1, 3);
+  s.reals("lo", std::vector<double>{0, 0, 0}, "lower corner of the domain (x, y, z)").of_length(3);
+  s.reals("hi", std::vector<double>{1, 1, 1}, "upper corner of the domain").of_length(3);
+  s.integers("roots", std::vector<std::int64_t>{1, 1, 1}, "root blocks per axis").of_length(3).in_range(1, 64);
+  s.texts("boundary_low", std::vector<std::string>{"outflow", "periodic", "periodic"},
+          "per axis, low side: periodic, slip_wall (wall on x = lo), outflow (zero gradient) or inflow (the initial state at the face, held fixed)")
+      .one_of(kBoundaries)
+      .of_length(3);
+  s.texts("boundary_high", std::vector<std::string>{"outflow", "periodic", "periodic"},
+          "per axis, high side: periodic, slip_wall (wall on the last point, hi - h), outflow or inflow")
+      .one_of(kBoundaries)
+      .of_length(3);
+  s.integer("block_size", 16, "collocation points per block and axis (even)").in_range(8, wavelet::kMaxBlockSize);
+  s.integer("min_level", 0, "coarsest level Jmin").in_range(0, 20);
+  s.integer("max_level", 4, "finest level Jmax").in_range(0, 20);
+  s.integer("order", 4, "Deslauriers-Dubuc interpolation order (4 or 6)").in_range(4, 6);
+  s.flag("adaptive", true, "adapt the grid (false: uniform at max_level)");
+  s.integer("adapt_every", 1, "steps between adaptations").at_least(1);
+  s.real("epsilon", 1e-3, "wavelet threshold on the conserved variables").above(0).below(1);
+  s.text("normalisation", "linf", "threshold scale: linf (global max of rho, |rho u|, E) or absolute")
+      .one_of({"linf", "absolute"});
+  s.real("gamma", 1.4, "ratio of specific heats").above(1);
+  s.real("cfl", 0.8, "Courant number of the step: dt = cfl / max sum_a (|u_a| + c) / h_a").above(0);
+  s.text("time_integrator", "rk4", "rk4, ssprk3 (fixed CFL step) or error_control (embedded ERK)")
+      .one_of({"rk4", "ssprk3", "error_control"});
+  s.real("rtol", 1e-6, "relative tolerance of error_control").above(0);
+  s.real("atol", 1e-9, "absolute tolerance of error_control").above(0);
+  s.flag("shock_capturing", true, "localised artificial dissipation at shocks");
+  s.real("capturing_coefficient", 1.2, "k of the dissipation flux k lambda s (q_{i+1} - q_i)").at_least(0);
+  s.real("sensor_threshold", 0.001, "psi_0: no dissipation where the sensor is below it").at_least(0);
+  s.text("initial", "uniform", "uniform, riemann (two states across a plane), shock (planar shock of shock_mach) "
+                               "vortex (isentropic vortex) or quadrants (2D Riemann problem)")
+      .one_of({"uniform", "riemann", "shock", "vortex", "quadrants"});
+  s.reals("left", std::vector<double>{1, 0, 1}, "rho, normal velocity, p on the side behind the normal (uniform: "
+                                                 "the state)")
+      .of_length(3);
+  s.reals("right", std::vector<double>{0.125, 0, 0.1}, "rho, normal velocity, p ahead of the plane").of_length(3);
+  s.reals("normal", std::vector<double>{1, 0, 0}, "normal of the initial plane (riemann, shock) or flow direction")
+      .of_length(3);
+  s.reals("centre", std::vector<double>{0.5, 0.5, 0.5}, "a point of the initial plane; the vortex centre")
+      .of_length(3);
+  s.reals("velocity", std::vector<double>{1, 1, 0}, "vortex: free-stream velocity").of_length(3);
+  s.real("shock_mach", 2.0, "shock: Mach number of the shock entering gas at rest (rho 1, p 1/gamma)").above(1);
+  s.real("vortex_strength", 5.0, "vortex: strength beta").above(0);
+  s.reals("density_wave", std::vector<double>{0, 0},
+          "riemann: density of the right state times 1 + a sin(k s), s the distance from the plane (Shu-Osher)")
+      .of_length(2);
+  s.reals("quadrants", std::vector<double>(16, 1.0),
+          "quadrants: rho, u, v, p of x>cx y>cy, x<cx y>cy, x<cx y<cy, x>cx y<cy (16 numbers)")
+      .of_length(16);
+}
+
+std::unique_ptr<io::System> FluidSystem::create(const Scene& scene) {
+  switch (scene.section("fluid").integer("dimension")) {
+    case 1: return std::make_unique<FluidModel<1>>(scene);
+    case 2: return std::make_unique<FluidModel<2>>(scene);
+    default: return std::make_unique<FluidModel<3>>(scene);
+  }
+}
+
+}  // namespace grainwave::fluid

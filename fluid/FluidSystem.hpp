@@ -1,0 +1,24 @@
+#pragma once
+// The compressible flow solver on the wavelet-adaptive grid as a runnable system, built from a
+// scene's [fluid] section: Euler equations (002 Eqs 2.1-2.4 without the viscous terms) in the
+// split form of SplitConvection.hpp with localised shock capturing, boundary conditions of
+// FluidBoundaries.hpp, ARKODE explicit RK in time (ErkIntegrator.hpp), and the AWCM cycle of 002
+// §2.2.2 every step: refine (significant blocks and their adjacent zone) -> step -> coarsen, on
+// the conserved variables (rho, rho u, E), each group normalised by its global max.
+#include <memory>
+
+#include "core/Parameters.hpp"
+#include "core/Scene.hpp"
+#include "io/System.hpp"
+
+namespace grainwave::fluid {
+
+class FluidSystem {
+ public:
+  /// Declares the [fluid] section.
+  static void declare(SceneSchema& schema);
+  /// Builds the system of the scene's dimension.
+  static std::unique_ptr<io::System> create(const Scene& scene);
+};
+
+}  // namespace grainwave::fluid
