@@ -194,7 +194,7 @@ class FluidModel : public io::System {
 
   // Per-block scratch (one block with ghosts), sized once: no allocation inside the RHS.
   std::vector<std::ptrdiff_t> interior_at_;  // array index of each interior point
-  std::vector<double> rho_, p_, e_, wave_, psi_;
+  std::vector<double> rho_, p_, e_, wave_, psi_, sound_;
   std::array<std::vector<double>, Dim> u_;
   // Viscous scratch: gradients of u_i and T along each axis, mu, and the fluxes along one axis.
   std::array<std::array<std::vector<double>, Dim>, Dim + 1> gradient_;
@@ -344,7 +344,7 @@ void FluidModel<Dim>::layout_changed() {
   const auto shape = grid_->layout().shape();
   const std::size_t volume = shape.size();
   if (rho_.size() == volume) return;
-  for (auto* v : {&rho_, &p_, &e_, &wave_, &psi_}) v->assign(volume, 0.0);
+  for (auto* v : {&rho_, &p_, &e_, &wave_, &psi_, &sound_}) v->assign(volume, 0.0);
   for (auto& v : u_) v.assign(volume, 0.0);
   viscous_points_.clear();
   if (viscous_) {
@@ -500,18 +500,23 @@ int FluidModel<Dim>::evaluate_rhs(std::span<const double> y, std::span<double> y
     }
     if (!shock_capturing_) continue;
     const double capture_start = clock.seconds();
+    for (std::size_t at = 0; at < volume; ++at) sound_[at] = std::sqrt(std::abs(gamma_ * p_[at] / rho_[at]));
     for (int a = 0; a < Dim; ++a) {
       const auto au = static_cast<std::size_t>(a);
       const std::ptrdiff_t stride = shape.stride(a);
       const int extent = shape.extent[au];
+      double psi_max = 0;
       for (std::size_t at = 0; at < volume; ++at) {
         const int i = static_cast<int>((static_cast<std::ptrdiff_t>(at) / stride) % extent);
-        wave_[at] = std::abs(u_[au][at]) + std::sqrt(std::abs(gamma_ * p_[at] / rho_[at]));
+        wave_[at] = std::abs(u_[au][at]) + sound_[at];
         psi_[at] = (i == 0 || i == extent - 1)
                        ? 0.0
                        : std::max(second_difference_sensor(p_.data(), static_cast<std::ptrdiff_t>(at), stride),
                                   second_difference_sensor(rho_.data(), static_cast<std::ptrdiff_t>(at), stride));
+        psi_max = std::max(psi_max, psi_[at]);
       }
+      // Below the threshold everywhere in the block the dissipation is exactly zero: skip it.
+      if (psi_max <= sensor_threshold_) continue;
       const double inv_h = 1 / h[au];
       for (std::size_t p = 0; p < per_block; ++p) {
         point.fill(0);
