@@ -938,8 +938,9 @@ const std::vector<std::string> kBoundaries = {"periodic", "slip_wall", "outflow"
 
 void FluidSystem::declare(SceneSchema& schema) {
   auto& s = schema.section("fluid",
-                           "Compressible Euler flow on the wavelet-adaptive grid (4th-order split central "
-                           "differences, localised shock capturing, ARKODE explicit RK); builds the fluid system.");
+                           "Compressible flow on the wavelet-adaptive grid: Euler, or Navier-Stokes when reynolds > 0 "
+                           "(4th-order split central differences, localised shock capturing, ARKODE explicit RK); "
+                           "builds the fluid system.");
   s.integer("dimension", 1, "1, 2 or 3").in_range(1, 3);
   s.reals("lo", std::vector<double>{0, 0, 0}, "lower corner of the domain (x, y, z)").of_length(3);
   s.reals("hi", std::vector<double>{1, 1, 1}, "upper corner of the domain").of_length(3);
