@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 #include <limits>
+#include <numbers>
 
 #include "core/Error.hpp"
 #include "core/Mpi.hpp"
@@ -14,6 +15,7 @@
 #include "fluid/FluidBoundaries.hpp"
 #include "fluid/IdealGas.hpp"
 #include "fluid/SplitConvection.hpp"
+#include "fluid/ViscousTerms.hpp"
 #include "io/AtomicFile.hpp"
 #include "io/Xdmf.hpp"
 #include "wavelet/AdaptiveGrid.hpp"
@@ -31,7 +33,7 @@ std::array<double, Dim> head(const std::vector<double>& v) {
   return out;
 }
 
-enum class InitialKind { kUniform, kRiemann, kShock, kVortex, kQuadrants };
+enum class InitialKind { kUniform, kRiemann, kShock, kVortex, kQuadrants, kShearWave };
 
 /// The initial state and, where one exists, the exact solution at time t.
 template <int Dim>
@@ -42,6 +44,7 @@ struct InitialCondition {
   std::array<double, Dim> normal{}, centre{}, velocity{}, length{};
   std::array<bool, Dim> periodic{};
   double shock_mach = 2, vortex_strength = 5;
+  double shear_amplitude = 1e-3, shear_decay = 0;  ///< shear wave: amplitude, exact decay rate k^2 / Re_a
   std::array<double, 2> density_wave{};          ///< amplitude, wavenumber on the right state (Shu-Osher)
   std::array<std::array<double, 4>, 4> quadrants{};  ///< (rho, u, v, p) of the four 2D quadrants
 
@@ -66,7 +69,7 @@ struct InitialCondition {
   }
   bool has_exact() const {
     return (kind == InitialKind::kRiemann && density_wave[0] == 0) || kind == InitialKind::kVortex ||
-           kind == InitialKind::kUniform;
+           kind == InitialKind::kUniform || kind == InitialKind::kShearWave;
   }
 
   Primitive<Dim> at(const std::array<double, Dim>& x, double t) const {
@@ -85,6 +88,13 @@ struct InitialCondition {
       }
       case InitialKind::kShock:  // moves along +normal into the gas ahead
         return with_normal_velocity(along_normal(x) > 0 ? ahead_of_shock() : behind_shock());
+      case InitialKind::kShearWave: {  // u_1 = A sin(2 pi x_0 / L_0) exp(-nu k^2 t), rho = 1, p = 1/gamma
+        Primitive<Dim> w;
+        w.p = 1 / gamma;
+        if constexpr (Dim > 1)
+          w.u[1] = shear_amplitude * std::sin(2 * std::numbers::pi * x[0] / length[0]) * std::exp(-shear_decay * t);
+        return w;
+      }
       case InitialKind::kQuadrants: {  // numbered counter-clockwise from x > cx, y > cy
         const bool right_half = x[0] > centre[0];
         const bool upper_half = Dim > 1 && x[static_cast<std::size_t>(Dim > 1)] > centre[static_cast<std::size_t>(Dim > 1)];
@@ -154,6 +164,8 @@ class FluidModel : public io::System {
 
  private:
   int evaluate_rhs(std::span<const double> y, std::span<double> ydot);
+  /// Adds the viscous and heat-conduction terms of block `slot` (primitives already computed).
+  void add_viscous_terms(std::size_t slot, double* out);
   void pack(std::span<double> y) const;
   void unpack(std::span<const double> y);
   void fill_boundary_ghosts();
@@ -172,6 +184,8 @@ class FluidModel : public io::System {
   std::array<std::array<Conserved<Dim>, 2>, Dim> inflow_{};  ///< state held by inflow ghosts
   double gamma_ = 1.4, cfl_ = 0.8;
   bool shock_capturing_ = true;
+  bool viscous_ = false;
+  double reynolds_ = 0, prandtl_ = 0.72, sutherland_s1_ = 110.4 / 300.0;
   double capturing_coefficient_ = 1.2, sensor_threshold_ = 0.001;
   InitialCondition<Dim> initial_;
   std::unique_ptr<AdaptiveGrid<Dim>> grid_, good_;
@@ -180,8 +194,13 @@ class FluidModel : public io::System {
 
   // Per-block scratch (one block with ghosts), sized once: no allocation inside the RHS.
   std::vector<std::ptrdiff_t> interior_at_;  // array index of each interior point
-  std::vector<double> rho_, p_, e_, wave_, psi_;
+  std::vector<double> rho_, p_, e_, wave_, psi_, sound_;
   std::array<std::vector<double>, Dim> u_;
+  // Viscous scratch: gradients of u_i and T along each axis, mu, and the fluxes along one axis.
+  std::array<std::array<std::vector<double>, Dim>, Dim + 1> gradient_;
+  std::vector<double> mu_;
+  std::array<std::vector<double>, Dim + 1> viscous_flux_;
+  std::vector<std::ptrdiff_t> viscous_points_;  // array points whose gradients the fluxes need
 };
 
 template <int Dim>
@@ -239,6 +258,7 @@ FluidModel<Dim>::FluidModel(const Scene& scene) {
                   : initial == "shock" ? InitialKind::kShock
                   : initial == "vortex" ? InitialKind::kVortex
                   : initial == "quadrants" ? InitialKind::kQuadrants
+                  : initial == "shear_wave" ? InitialKind::kShearWave
                                         : InitialKind::kUniform;
   initial_.gamma = gamma_;
   const auto& l = s.reals("left");
@@ -265,6 +285,18 @@ FluidModel<Dim>::FluidModel(const Scene& scene) {
   initial_.density_wave = {wave[0], wave[1]};
   const auto quadrants = s.reals("quadrants");
   for (std::size_t k = 0; k < 16; ++k) initial_.quadrants[k / 4][k % 4] = quadrants[k];
+  reynolds_ = s.real("reynolds");
+  prandtl_ = s.real("prandtl");
+  sutherland_s1_ = s.real("sutherland_s1");
+  viscous_ = reynolds_ > 0;
+  if (viscous_) config_.ghosts = std::max(config_.ghosts, kViscousReach);
+  initial_.shear_amplitude = s.real("shear_amplitude");
+  if (initial_.kind == InitialKind::kShearWave) {
+    if (Dim < 2) s.fail("initial", "the shear wave needs dimension 2 or 3");
+    const double k = 2 * std::numbers::pi / initial_.length[0];
+    // Linear, isothermal (T = 1, mu = 1, rho = 1): the transverse velocity diffuses with nu = 1 / Re_a.
+    initial_.shear_decay = viscous_ ? k * k / reynolds_ : 0.0;
+  }
   if (initial_.kind == InitialKind::kQuadrants && Dim < 2) s.fail("initial", "four quadrants need dimension 2 or 3");
   for (int a = 0; a < Dim; ++a)
     for (int side = 0; side < 2; ++side) {
@@ -312,8 +344,23 @@ void FluidModel<Dim>::layout_changed() {
   const auto shape = grid_->layout().shape();
   const std::size_t volume = shape.size();
   if (rho_.size() == volume) return;
-  for (auto* v : {&rho_, &p_, &e_, &wave_, &psi_}) v->assign(volume, 0.0);
+  for (auto* v : {&rho_, &p_, &e_, &wave_, &psi_, &sound_}) v->assign(volume, 0.0);
   for (auto& v : u_) v.assign(volume, 0.0);
+  viscous_points_.clear();
+  if (viscous_) {
+    for (auto& g : gradient_)
+      for (auto& v : g) v.assign(volume, 0.0);
+    mu_.assign(volume, 0.0);
+    for (auto& v : viscous_flux_) v.assign(volume, 0.0);
+    // Points at least two layers inside the array: the gradient stencils stay in the array, and
+    // they cover interior +- 2 along every axis, what the flux divergence reads.
+    for (std::size_t at = 0; at < volume; ++at) {
+      const auto i = shape.coords(static_cast<std::ptrdiff_t>(at));
+      bool inside = true;
+      for (int a = 0; a < Dim; ++a) inside = inside && i[static_cast<std::size_t>(a)] >= 2 && i[static_cast<std::size_t>(a)] < shape.extent[static_cast<std::size_t>(a)] - 2;
+      if (inside) viscous_points_.push_back(static_cast<std::ptrdiff_t>(at));
+    }
+  }
   interior_at_.clear();
   const int g = grid_->layout().ghosts, bs = config_.block_size;
   for (std::size_t p = 0; p < grid_->points_per_block(); ++p) {
@@ -415,7 +462,7 @@ int FluidModel<Dim>::evaluate_rhs(std::span<const double> y, std::span<double> y
   const std::size_t volume = shape.size(), per_block = interior_at_.size();
   const double gm1 = gamma_ - 1;
   Stopwatch clock;
-  double convection_s = 0, capturing_s = 0;
+  double convection_s = 0, capturing_s = 0, viscous_s = 0;
   BlockPrimitives<Dim> w{rho_.data(), {}, p_.data(), e_.data()};
   for (int a = 0; a < Dim; ++a) w.u[static_cast<std::size_t>(a)] = u_[static_cast<std::size_t>(a)].data();
   for (std::size_t s = 0; s < grid_->local_blocks(); ++s) {
@@ -447,19 +494,29 @@ int FluidModel<Dim>::evaluate_rhs(std::span<const double> y, std::span<double> y
     }
     const double mid = clock.seconds();
     convection_s += mid - start;
+    if (viscous_) {
+      add_viscous_terms(s, out);
+      viscous_s += clock.seconds() - mid;
+    }
     if (!shock_capturing_) continue;
+    const double capture_start = clock.seconds();
+    for (std::size_t at = 0; at < volume; ++at) sound_[at] = std::sqrt(std::abs(gamma_ * p_[at] / rho_[at]));
     for (int a = 0; a < Dim; ++a) {
       const auto au = static_cast<std::size_t>(a);
       const std::ptrdiff_t stride = shape.stride(a);
       const int extent = shape.extent[au];
+      double psi_max = 0;
       for (std::size_t at = 0; at < volume; ++at) {
         const int i = static_cast<int>((static_cast<std::ptrdiff_t>(at) / stride) % extent);
-        wave_[at] = std::abs(u_[au][at]) + std::sqrt(std::abs(gamma_ * p_[at] / rho_[at]));
+        wave_[at] = std::abs(u_[au][at]) + sound_[at];
         psi_[at] = (i == 0 || i == extent - 1)
                        ? 0.0
                        : std::max(second_difference_sensor(p_.data(), static_cast<std::ptrdiff_t>(at), stride),
                                   second_difference_sensor(rho_.data(), static_cast<std::ptrdiff_t>(at), stride));
+        psi_max = std::max(psi_max, psi_[at]);
       }
+      // Below the threshold everywhere in the block the dissipation is exactly zero: skip it.
+      if (psi_max <= sensor_threshold_) continue;
       const double inv_h = 1 / h[au];
       for (std::size_t p = 0; p < per_block; ++p) {
         point.fill(0);
@@ -468,19 +525,65 @@ int FluidModel<Dim>::evaluate_rhs(std::span<const double> y, std::span<double> y
         for (int f = 0; f < kFields; ++f) out[static_cast<std::size_t>(f) * per_block + p] += point[static_cast<std::size_t>(f)];
       }
     }
-    capturing_s += clock.seconds() - mid;
+    capturing_s += clock.seconds() - capture_start;
   }
   timers_.add("rhs: convection", convection_s);
   if (shock_capturing_) timers_.add("rhs: capturing", capturing_s);
+  if (viscous_) timers_.add("rhs: viscous", viscous_s);
   stats_.point_rhs += static_cast<double>(grid_->local_blocks() * per_block);
   return 0;
 }
 
 template <int Dim>
+void FluidModel<Dim>::add_viscous_terms(std::size_t slot, double* out) {
+  const auto shape = grid_->layout().shape();
+  const auto h = grid_->spacing(grid_->key(slot).level);
+  const std::size_t per_block = interior_at_.size();
+  const double inv_re = 1 / reynolds_, conduction = 1 / ((gamma_ - 1) * reynolds_ * prandtl_);
+  // T = gamma p / rho (c^2) into wave_ (free until the capturing stage overwrites it).
+  for (std::size_t at = 0; at < wave_.size(); ++at) wave_[at] = gamma_ * p_[at] / rho_[at];
+  for (const auto at : viscous_points_) {
+    const auto au = static_cast<std::size_t>(at);
+    for (int a = 0; a < Dim; ++a) {
+      const auto aa = static_cast<std::size_t>(a);
+      const double inv_h = 1 / h[aa];
+      const std::ptrdiff_t stride = shape.stride(a);
+      for (int i = 0; i < Dim; ++i)
+        gradient_[static_cast<std::size_t>(i)][aa][au] = central_derivative(u_[static_cast<std::size_t>(i)].data(), at, stride, inv_h);
+      gradient_[Dim][aa][au] = central_derivative(wave_.data(), at, stride, inv_h);
+    }
+    mu_[au] = sutherland_viscosity(wave_[au], sutherland_s1_);
+  }
+  for (int j = 0; j < Dim; ++j) {
+    const auto ju = static_cast<std::size_t>(j);
+    for (const auto at : viscous_points_) {
+      const auto au = static_cast<std::size_t>(at);
+      double grad[Dim][Dim];
+      for (int i = 0; i < Dim; ++i)
+        for (int k = 0; k < Dim; ++k) grad[i][k] = gradient_[static_cast<std::size_t>(i)][static_cast<std::size_t>(k)][au];
+      double work = 0;
+      for (int i = 0; i < Dim; ++i) {
+        const double tau = inv_re * viscous_stress<Dim>(grad, mu_[au], i, j);
+        viscous_flux_[static_cast<std::size_t>(i)][au] = tau;
+        work += u_[static_cast<std::size_t>(i)][au] * tau;
+      }
+      viscous_flux_[Dim][au] = work + conduction * mu_[au] * gradient_[Dim][ju][au];
+    }
+    const double inv_h = 1 / h[ju];
+    const std::ptrdiff_t stride = shape.stride(j);
+    for (std::size_t p = 0; p < per_block; ++p)
+      for (int f = 0; f <= Dim; ++f)
+        out[static_cast<std::size_t>(f + 1) * per_block + p] +=
+            central_derivative(viscous_flux_[static_cast<std::size_t>(f)].data(), interior_at_[p], stride, inv_h);
+  }
+}
+
+template <int Dim>
 std::string FluidModel<Dim>::describe() const {
-  return fmt::format("fluid: {}D Euler, 4th-order KEP split central differences, {}, {}, blocks of {}^{}, levels "
+  return fmt::format("fluid: {}D {}, 4th-order KEP split central differences, {}, {}, blocks of {}^{}, levels "
                      "{}..{}, {}, {} blocks",
-                     Dim, shock_capturing_ ? "sensor-localised shock capturing" : "no shock capturing",
+                     Dim, viscous_ ? fmt::format("Navier-Stokes (Re_a {}, Pr {}, Sutherland)", reynolds_, prandtl_) : std::string("Euler"),
+                     shock_capturing_ ? "sensor-localised shock capturing" : "no shock capturing",
                      integrator_->describe(), config_.block_size, Dim, config_.min_level, config_.max_level,
                      adaptive_ ? fmt::format("adapted every {} step(s), eps {}", adapt_every_, threshold_.epsilon)
                                : std::string("uniform"),
@@ -502,6 +605,13 @@ double FluidModel<Dim>::max_stable_dt() const {
       const double c = std::sqrt(std::abs(gamma_ * w.p / w.rho));
       double r = 0;
       for (int a = 0; a < Dim; ++a) r += (std::abs(w.u[static_cast<std::size_t>(a)]) + c) / h[static_cast<std::size_t>(a)];
+      if (viscous_) {
+        // Diffusion: the largest diffusivity (momentum 4/3 nu or heat gamma nu / Pr) times the
+        // spectral radius of the nested 4th-order derivatives, ~ (4/3)^2 per axis / h^2.
+        const double nu = sutherland_viscosity(c * c, sutherland_s1_) / (w.rho * reynolds_);
+        const double diffusivity = nu * std::max(4.0 / 3.0, gamma_ / prandtl_);
+        for (int a = 0; a < Dim; ++a) r += 1.8 * diffusivity / (h[static_cast<std::size_t>(a)] * h[static_cast<std::size_t>(a)]);
+      }
       if (std::isfinite(r)) rate = std::max(rate, r);
     }
   }
@@ -760,6 +870,7 @@ void FluidModel<Dim>::report(io::Json& counts, io::Json& metrics, double step_wa
     };
     // The compared velocity: along the normal for Riemann problems, u_x otherwise.
     auto velocity = [&](const Primitive<Dim>& w) {
+      if (initial_.kind == InitialKind::kShearWave) return w.u[static_cast<std::size_t>(Dim - 1 > 0 ? 1 : 0)];
       if (initial_.kind != InitialKind::kRiemann) return w.u[0];
       double un = 0;
       for (int a = 0; a < Dim; ++a) un += w.u[static_cast<std::size_t>(a)] * initial_.normal[static_cast<std::size_t>(a)];
@@ -827,8 +938,9 @@ const std::vector<std::string> kBoundaries = {"periodic", "slip_wall", "outflow"
 
 void FluidSystem::declare(SceneSchema& schema) {
   auto& s = schema.section("fluid",
-                           "Compressible Euler flow on the wavelet-adaptive grid (4th-order split central "
-                           "differences, localised shock capturing, ARKODE explicit RK); builds the fluid system.");
+                           "Compressible flow on the wavelet-adaptive grid: Euler, or Navier-Stokes when reynolds > 0 "
+                           "(4th-order split central differences, localised shock capturing, ARKODE explicit RK); "
+                           "builds the fluid system.");
   s.integer("dimension", 1, "1, 2 or 3").in_range(1, 3);
   s.reals("lo", std::vector<double>{0, 0, 0}, "lower corner of the domain (x, y, z)").of_length(3);
   s.reals("hi", std::vector<double>{1, 1, 1}, "upper corner of the domain").of_length(3);
@@ -860,8 +972,8 @@ void FluidSystem::declare(SceneSchema& schema) {
   s.real("capturing_coefficient", 1.2, "k of the dissipation flux k lambda s (q_{i+1} - q_i)").at_least(0);
   s.real("sensor_threshold", 0.001, "psi_0: no dissipation where the sensor is below it").at_least(0);
   s.text("initial", "uniform", "uniform, riemann (two states across a plane), shock (planar shock of shock_mach) "
-                               "vortex (isentropic vortex) or quadrants (2D Riemann problem)")
-      .one_of({"uniform", "riemann", "shock", "vortex", "quadrants"});
+                               "vortex (isentropic vortex), quadrants (2D Riemann problem) or shear_wave (viscous decay)")
+      .one_of({"uniform", "riemann", "shock", "vortex", "quadrants", "shear_wave"});
   s.reals("left", std::vector<double>{1, 0, 1}, "rho, normal velocity, p on the side behind the normal (uniform: "
                                                  "the state)")
       .of_length(3);
@@ -873,6 +985,10 @@ void FluidSystem::declare(SceneSchema& schema) {
   s.reals("velocity", std::vector<double>{1, 1, 0}, "vortex: free-stream velocity").of_length(3);
   s.real("shock_mach", 2.0, "shock: Mach number of the shock entering gas at rest (rho 1, p 1/gamma)").above(1);
   s.real("vortex_strength", 5.0, "vortex: strength beta").above(0);
+  s.real("reynolds", 0.0, "acoustic Reynolds number Re_a; 0: inviscid (Euler, no viscous code runs)").at_least(0);
+  s.real("prandtl", 0.72, "Prandtl number Pr").above(0);
+  s.real("sutherland_s1", 110.4 / 300.0, "Sutherland constant S1 = S / T0 (air: 110.4 K / 300 K)").above(0);
+  s.real("shear_amplitude", 1e-3, "shear_wave: amplitude A of u_y = A sin(2 pi x / L_x)").above(0);
   s.reals("density_wave", std::vector<double>{0, 0},
           "riemann: density of the right state times 1 + a sin(k s), s the distance from the plane (Shu-Osher)")
       .of_length(2);

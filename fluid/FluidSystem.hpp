@@ -1,9 +1,10 @@
 #pragma once
 // The compressible flow solver on the wavelet-adaptive grid as a runnable system, built from a
-// scene's [fluid] section: Euler equations (002 Eqs 2.1-2.4 without the viscous terms) in the
-// split form of SplitConvection.hpp with localised shock capturing, boundary conditions of
-// FluidBoundaries.hpp, ARKODE explicit RK in time (ErkIntegrator.hpp), and the AWCM cycle of 002
-// §2.2.2 every step: refine (significant blocks and their adjacent zone) -> step -> coarsen, on
+// scene's [fluid] section: the compressible Navier-Stokes equations of 002 Eqs 2.1-2.7 (Euler
+// when the scene sets no Reynolds number) with the inviscid terms in the split form of
+// SplitConvection.hpp, localised shock capturing, the viscous terms of ViscousTerms.hpp, boundary
+// conditions of FluidBoundaries.hpp, ARKODE explicit RK in time (ErkIntegrator.hpp), and the AWCM
+// cycle of 002 §2.2.2 every step (or every adapt_every steps): refine (significant blocks and their adjacent zone) -> step -> coarsen, on
 // the conserved variables (rho, rho u, E), each group normalised by its global max.
 #include <memory>
 

@@ -155,6 +155,22 @@ def stress_runs():
            f"Mach 10: p5/p1 {s['metrics']['p_reflected_over_p1']:.1f} within 1% of exact")
 
 
+def viscous_shear_wave():
+    # Viscous terms against the exact decay exp(-k^2 t / Re_a) of a small shear wave: error of the
+    # y velocity on 64x16 and 128x32 uniform grids, conservation on the periodic strip.
+    errors = []
+    for level in (0, 1):
+        s, _, _ = run("viscous_shear_wave.toml", f"fluid.max_level={level}", "run.t_end=0.25",
+                      out=scratch(f"shear_wave_{level}"))
+        m = s["metrics"]
+        errors.append(m["Linf_u"])
+        expect(m["Linf_u"] <= 1e-3 * 1e-3, f"level {level}: Linf u error {m['Linf_u']:.2e} <= 1e-3 of the amplitude")
+        for key in ("mass_drift", "energy_drift"):
+            expect(m[key] <= 1e-12, f"level {level}: {key} {m[key]:.2e} <= 1e-12")
+    order = math.log2(errors[0] / errors[1])
+    expect(order >= 3.8, f"viscous terms: Linf u order {order:.2f} >= 3.8")
+
+
 def validate_long_runs():
     # Long: the vortex for 100 periods (t = 1000) on a 64^2 grid, adapted, and the full-size 2D Riemann problem.
     s, _, _ = run("isentropic_vortex.toml", "run.t_end=1000", "fluid.max_level=2", "output.interval=0",
@@ -177,5 +193,6 @@ if __name__ == "__main__":
         "fluid_restart_is_exact": restart_is_exact,
         "fluid_too_large_cfl_is_caught": too_large_cfl_is_caught,
         "fluid_stress_runs": stress_runs,
+        "fluid_viscous_shear_wave": viscous_shear_wave,
         "fluid_validate_long_runs": validate_long_runs,
     })

@@ -1,0 +1,92 @@
+// Throughput of the fluid right-hand side on one block (items = point-RHS evaluations per
+// second): primitives over the block with ghosts, then the split-form convection along every axis
+// (Euler), optionally with the shock sensor and dissipation, in 1D, 2D and 3D. The viscous terms
+// are not implemented yet, so there is no Navier-Stokes variant.
+#include <benchmark/benchmark.h>
+
+#include <array>
+#include <cmath>
+#include <vector>
+
+#include "fluid/IdealGas.hpp"
+#include "fluid/SplitConvection.hpp"
+#include "wavelet/ArrayShape.hpp"
+
+namespace gf = grainwave::fluid;
+
+namespace {
+
+template <int Dim>
+void BM_EulerRhsBlock(benchmark::State& state) {
+  constexpr int kFields = Dim + 2;
+  const int bs = static_cast<int>(state.range(0)), g = gf::kStencilReach;
+  const bool capturing = state.range(1) != 0;
+  grainwave::wavelet::ArrayShape<Dim> shape;
+  shape.extent.fill(bs + 2 * g);
+  const std::size_t volume = shape.size();
+  std::array<std::vector<double>, kFields> q;
+  for (auto& f : q) f.resize(volume);
+  for (std::size_t at = 0; at < volume; ++at) {
+    gf::Primitive<Dim> w;
+    w.rho = 1 + 0.1 * std::sin(0.1 * static_cast<double>(at));
+    for (auto& u : w.u) u = 0.2 * std::cos(0.07 * static_cast<double>(at));
+    w.p = 0.7 + 0.05 * std::sin(0.13 * static_cast<double>(at));
+    const auto c = gf::to_conserved(w, 1.4);
+    for (int f = 0; f < kFields; ++f) q[static_cast<std::size_t>(f)][at] = c[static_cast<std::size_t>(f)];
+  }
+  std::vector<double> rho(volume), p(volume), e(volume), wave(volume), psi(volume);
+  std::array<std::vector<double>, Dim> u;
+  for (auto& v : u) v.resize(volume);
+  std::vector<std::ptrdiff_t> interior;
+  for (std::size_t at = 0; at < volume; ++at) {
+    const auto i = shape.coords(static_cast<std::ptrdiff_t>(at));
+    bool inside = true;
+    for (int c : i) inside = inside && c >= g && c < g + bs;
+    if (inside) interior.push_back(static_cast<std::ptrdiff_t>(at));
+  }
+  std::vector<double> out(interior.size() * kFields);
+  gf::BlockPrimitives<Dim> w{rho.data(), {}, p.data(), e.data()};
+  for (int a = 0; a < Dim; ++a) w.u[static_cast<std::size_t>(a)] = u[static_cast<std::size_t>(a)].data();
+  std::array<const double*, kFields> qp{};
+  for (int f = 0; f < kFields; ++f) qp[static_cast<std::size_t>(f)] = q[static_cast<std::size_t>(f)].data();
+  for (auto _ : state) {
+    for (std::size_t at = 0; at < volume; ++at) {
+      const double r = q[0][at], inv = 1 / r;
+      double kinetic = 0;
+      for (int a = 0; a < Dim; ++a) {
+        const double ua = q[static_cast<std::size_t>(a) + 1][at] * inv;
+        u[static_cast<std::size_t>(a)][at] = ua;
+        kinetic += ua * ua;
+      }
+      rho[at] = r;
+      e[at] = q[kFields - 1][at] * inv;
+      p[at] = 0.4 * (q[kFields - 1][at] - 0.5 * r * kinetic);
+    }
+    for (std::size_t k = 0; k < interior.size(); ++k) {
+      double* o = out.data() + k * kFields;
+      for (int f = 0; f < kFields; ++f) o[f] = 0;
+      for (int a = 0; a < Dim; ++a) gf::add_split_convection<Dim>(w, interior[k], shape.stride(a), a, 100.0, o);
+    }
+    if (capturing)
+      for (int a = 0; a < Dim; ++a) {
+        const std::ptrdiff_t stride = shape.stride(a);
+        for (std::size_t at = static_cast<std::size_t>(stride); at + static_cast<std::size_t>(stride) < volume; ++at) {
+          wave[at] = std::abs(u[static_cast<std::size_t>(a)][at]) + std::sqrt(1.4 * p[at] / rho[at]);
+          psi[at] = gf::second_difference_sensor(p.data(), static_cast<std::ptrdiff_t>(at), stride);
+        }
+        for (std::size_t k = 0; k < interior.size(); ++k)
+          gf::add_shock_dissipation<Dim>(qp, psi.data(), wave.data(), interior[k], stride, 1.2, 1e-3, 100.0,
+                                         out.data() + k * kFields);
+      }
+    benchmark::DoNotOptimize(out.data());
+    benchmark::ClobberMemory();
+  }
+  state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(interior.size()));
+}
+
+}  // namespace
+
+BENCHMARK_TEMPLATE(BM_EulerRhsBlock, 1)->Args({16, 0})->Args({16, 1});
+BENCHMARK_TEMPLATE(BM_EulerRhsBlock, 2)->Args({16, 0})->Args({16, 1});
+BENCHMARK_TEMPLATE(BM_EulerRhsBlock, 3)->Args({16, 0})->Args({16, 1});
+BENCHMARK_MAIN();

@@ -1,0 +1,72 @@
+#!/usr/bin/env python3
+"""Run time against error for the fluid solver: Sod (t = 0.2) and the isentropic vortex (t = 1)
+on uniform grids of increasing resolution and on adaptive grids with eps = 1e-2 ... 1e-5 at the
+finest level of the largest uniform grid. Writes one table (case, grid, eps, points computed,
+wall time, L1 density error) as runtime_vs_error.csv and .md into the output folder; plot it with
+postprocess/runtime_vs_error.py.
+
+usage: bench/runtime_vs_error.py GRAINWAVE_EXECUTABLE [OUT_FOLDER] [--quick]
+Point counts are point-RHS evaluations (points x RHS calls summed over steps), the work actually
+done; wall time is the run's wall_s (one rank, output only at start and end).
+"""
+import csv
+import json
+import os
+import subprocess
+import sys
+
+SOURCE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def run(exe, scene, out, settings):
+    cmd = [exe, "run", os.path.join(SOURCE, "cases", scene), "--out", out, "--set", "output.interval=0"]
+    for s in settings:
+        cmd += ["--set", s]
+    subprocess.run(cmd, check=True, capture_output=True, text=True)
+    with open(os.path.join(out, "summary.json")) as f:
+        return json.load(f)
+
+
+def main():
+    args = [a for a in sys.argv[1:] if not a.startswith("--")]
+    quick = "--quick" in sys.argv
+    exe = args[0]
+    out = args[1] if len(args) > 1 else "out/runtime_vs_error"
+    os.makedirs(out, exist_ok=True)
+    studies = [
+        ("sod", "sod.toml", [], range(3, 6 if quick else 8), 5 if quick else 7),
+        ("vortex", "isentropic_vortex.toml", ["run.t_end=1", "fluid.shock_capturing=false"], range(1, 4 if quick else 5),
+         3 if quick else 4),
+    ]
+    rows = []
+    for name, scene, common, levels, finest in studies:
+        for level in levels:
+            s = run(exe, scene, os.path.join(out, f"{name}_uniform_{level}"),
+                    common + ["fluid.adaptive=false", f"fluid.max_level={level}"])
+            rows.append((name, f"uniform L{level}", "", s))
+        for eps in (1e-2, 1e-3, 1e-4, 1e-5):
+            s = run(exe, scene, os.path.join(out, f"{name}_adaptive_{eps:.0e}"),
+                    common + [f"fluid.max_level={finest}", f"fluid.epsilon={eps}"])
+            rows.append((name, f"adaptive L{finest}", f"{eps:.0e}", s))
+    table = []
+    for name, grid, eps, s in rows:
+        per_block = s["counts"]["points"] / s["counts"]["blocks"]
+        work = s["metrics"]["point_rhs_per_s"] * s["wall_s"]  # approximate: rate is per stepping second
+        table.append({"case": name, "grid": grid, "eps": eps, "final_points": s["counts"]["points"],
+                      "points_fraction": f"{s['metrics']['points_fraction']:.3f}",
+                      "point_rhs": f"{work:.3e}", "wall_s": f"{s['wall_s']:.3f}",
+                      "L1_rho": f"{s['metrics']['L1_rho']:.3e}", "block_points": int(per_block)})
+    with open(os.path.join(out, "runtime_vs_error.csv"), "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(table[0]))
+        w.writeheader()
+        w.writerows(table)
+    with open(os.path.join(out, "runtime_vs_error.md"), "w") as f:
+        keys = list(table[0])
+        f.write("| " + " | ".join(keys) + " |\n|" + " --- |" * len(keys) + "\n")
+        for r in table:
+            f.write("| " + " | ".join(str(r[k]) for k in keys) + " |\n")
+    print(open(os.path.join(out, "runtime_vs_error.md")).read())
+
+
+if __name__ == "__main__":
+    main()
