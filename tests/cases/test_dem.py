@@ -107,9 +107,9 @@ def restart_bitwise_with_history():
 def hopper_drain_flow_rate():
     """002 Fig. 3.4: the mass flow rate is independent of the fill height above a critical
     height, and lower below it (the fill no longer screens the outlet)."""
-    rates = {}
+    rates, outs = {}, {}
     for n in (300, 1000, 1500):
-        _, s = run_case("hopper_drain", f"dem.count={n}", tag=f"_{n}")
+        outs[n], s = run_case("hopper_drain", f"dem.count={n}", tag=f"_{n}")
         rates[n] = s["metrics"]["mass_flow_rate"]
         print(f"fill {n} disks: opened at {s['metrics']['gate_opened_at']:.3f} s, "
               f"mass flow rate {rates[n]:.3f} kg/s per m, {s['counts']['particles_removed']} drained")
@@ -119,12 +119,17 @@ def hopper_drain_flow_rate():
            f"{rates[1500]:.3f} kg/s/m ({100 * (rates[1000] / rates[1500] - 1):+.2f} %)")
     expect(rates[300] < 0.9 * rates[1500],
            f"below the critical height the rate falls: {rates[300]:.3f} kg/s/m")
+    flows = [os.path.join(outs[n], "flow.csv") for n in (300, 1000, 1500)]
+    proc = subprocess.run([sys.executable, os.path.join(SOURCE, "postprocess", "plot_dem_flow_rate.py"),
+                           *flows, "--window", "0.05"], capture_output=True, text=True)
+    png = os.path.join(outs[300], "flow_rate.png")
+    expect(proc.returncode == 0 and os.path.getsize(png) > 10000, f"rate vs fill height plotted to {png} {proc.stderr}")
 
 
 def hopper_drain_on_2_ranks():
     """The replicated DEM gives the same mass flow rate on 2 ranks (here: identical)."""
-    _, one = run_case("hopper_drain", "dem.count=600", tag="_r1")
-    _, two = run_case("hopper_drain", "dem.count=600", ranks=2, tag="_r2")
+    _, one = run_case("hopper_drain", "dem.count=300", tag="_r1")
+    _, two = run_case("hopper_drain", "dem.count=300", ranks=2, tag="_r2")
     a, b = one["metrics"]["mass_flow_rate"], two["metrics"]["mass_flow_rate"]
     expect(a == b, f"mass flow rate {a:.6f} (1 rank) and {b:.6f} (2 ranks)")
 
