@@ -196,6 +196,32 @@ def hopper_restart_bitwise():
                "positions and velocities identical after the restart")
 
 
+def rough_hopper_walls():
+    """hopper_drain with its funnel walls made rough (a row of fixed disks, 002 Fig. 3.3): the
+    fixed disks never move, the fill still settles, the gate opens and the hopper drains."""
+    with open(case("hopper_drain.toml")) as f:
+        text = f.read()
+    rough = text.replace("b = [-0.009, 0.0]\n", "b = [-0.009, 0.0]\nrough = true\n").replace(
+        "b = [0.009, 0.0]\n", "b = [0.009, 0.0]\nrough = true\n")
+    expect(rough.count("rough = true") == 2, "both funnel walls made rough")
+    out = scratch("rough_hopper_walls")
+    scene = os.path.join(out, "hopper_rough.toml")
+    with open(scene, "w") as f:
+        f.write(rough)
+    grainwave("run", scene, "--out", out, "--set", "dem.count=300", "--set", "run.t_end=0.45", check=0)
+    s = summary(out)
+    expect(s["counts"]["fixed_particles"] > 20, f"{s['counts']['fixed_particles']} fixed wall disks")
+    expect(s["metrics"]["mass_flow_rate"] > 0 and s["counts"]["particles_removed"] > 0,
+           f"the hopper drains: {s['metrics']['mass_flow_rate']:.3f} kg/s/m, {s['counts']['particles_removed']} out")
+    files = sorted(glob.glob(os.path.join(out, "output_*.h5")))
+    with h5py.File(files[0]) as a, h5py.File(files[-1]) as b:
+        fa, fb = a["particles/flags"][()] == 1, b["particles/flags"][()] == 1
+        xa = a["particles/position"][()][fa]
+        xb = b["particles/position"][()][fb]
+        expect(np.array_equal(a["particles/id"][()][fa], b["particles/id"][()][fb]) and np.array_equal(xa, xb),
+               "the rough-wall disks stay where they were placed")
+
+
 def dense_bed_on_1_and_2_ranks():
     """A dense, frictional configuration with history on 1 and 2 ranks: identical contact
     forces, hence identical states (the DEM store is replicated on every rank)."""
@@ -264,4 +290,5 @@ if __name__ == "__main__":
                                   restart_bitwise_with_history, hopper_drain_flow_rate,
                                   hopper_drain_on_2_ranks, curtain_small_state,
                                   channel_small_plug_flow, channel_full, curtain_full,
-                                  hopper_restart_bitwise, dense_bed_on_1_and_2_ranks]})
+                                  hopper_restart_bitwise, dense_bed_on_1_and_2_ranks,
+                                  rough_hopper_walls]})
