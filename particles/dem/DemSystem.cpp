@@ -207,6 +207,10 @@ void DemSystem::declare(SceneSchema& schema) {
   s.real("flow_start", 0.0, "mass flow measured from this long after the gate opened [s]")
       .at_least(0);
   s.real("flow_end", 0.0, "... until this long after; 0: to the end [s]").at_least(0);
+  s.real("flow_record_interval", 0.01,
+         "time between rows of flow.csv (t, mass through the plane, mass above it, fill top) "
+         "[s]")
+      .above(0);
   s.reals("packing_y", std::vector<double>{0, 0},
           "y range of the slab whose solid fraction is reported as packing_fraction (equal: "
           "none) [m]")
@@ -283,6 +287,8 @@ DemSystem::DemSystem(const Scene& scene) : scene_(scene) {
   flow_plane_ = s.real("flow_plane_y");
   flow_start_ = s.real("flow_start");
   flow_end_ = s.real("flow_end");
+  flow_record_interval_ = s.real("flow_record_interval");
+  flow_csv_ = "t,drained_mass,mass_above_plane,fill_top\n";
   max_overlap_ratio_ = s.real("max_overlap");
   const auto& packing = s.reals("packing_y");
   if (packing[1] > packing[0]) packing_window_ = std::array<double, 2>{packing[0], packing[1]};
@@ -558,8 +564,14 @@ void DemSystem::advance(double /*t*/, double dt) {
   tally_.time += dt;
   if (measure_flow_ && tally_.opened_at >= 0) {
     const double since = t_start - tally_.opened_at;
-    if (since >= flow_start_ * (1 - 1e-12) && (flow_end_ == 0 || since < flow_end_)) measure_flow(dt);
+    const double before = tally_.flow_mass;
+    measure_flow(dt);
+    const bool in_window = since >= flow_start_ * (1 - 1e-12) && (flow_end_ == 0 || since < flow_end_);
+    tally_.flow_mass_total += tally_.flow_mass - before;
+    if (!in_window) tally_.flow_mass = before;
+    else tally_.flow_time += dt;
   }
+  if (measure_flow_ && tally_.time >= tally_.next_flow_record * (1 - 1e-12)) record_flow();
   if (placement_ == Placement::kCollision) probe_collision(dt);
   remove_leaving_particles();
   finish_settling_if_done();
@@ -579,7 +591,28 @@ void DemSystem::measure_flow(double dt) {
     if (before >= flow_plane_ && after < flow_plane_) tally_.flow_mass += store_.mass[i];
     else if (before < flow_plane_ && after >= flow_plane_) tally_.flow_mass -= store_.mass[i];
   }
-  tally_.flow_time += dt;
+  (void)dt;
+}
+
+void DemSystem::record_flow() {
+  // The fill top is the 99th percentile of the heights above the plane, so a single bouncing
+  // particle does not set it.
+  double above = 0;
+  scratch_heights_.clear();
+  for (std::size_t i = 0; i < store_.size(); ++i) {
+    if (store_.is_fixed(i) || store_.position[i].y() < flow_plane_) continue;
+    above += store_.mass[i];
+    scratch_heights_.push_back(store_.position[i].y());
+  }
+  double top = flow_plane_;
+  if (!scratch_heights_.empty()) {
+    const auto k = static_cast<std::ptrdiff_t>(0.99 * static_cast<double>(scratch_heights_.size() - 1));
+    std::nth_element(scratch_heights_.begin(), scratch_heights_.begin() + k, scratch_heights_.end());
+    top = scratch_heights_[static_cast<std::size_t>(k)];
+  }
+  flow_csv_ += fmt::format("{:.9g},{:.9g},{:.9g},{:.9g}\n", tally_.time, tally_.flow_mass_total, above, top);
+  tally_.next_flow_record += flow_record_interval_;
+  if (tally_.next_flow_record <= tally_.time) tally_.next_flow_record = tally_.time + flow_record_interval_;
 }
 
 std::pair<double, double> DemSystem::gap_rate_and_acceleration() const {
@@ -747,6 +780,7 @@ void DemSystem::save_good_state() {
   good_store_ = store_;
   good_tally_ = tally_;
   good_bins_ = bins_;
+  good_flow_csv_ = flow_csv_;
   good_sample_position_ = sample_position_;
   good_sample_seen_ = sample_seen_;
   if (verlet_.has_forces()) {
@@ -763,6 +797,7 @@ void DemSystem::restore_good_state() {
   store_ = good_store_;
   tally_ = good_tally_;
   bins_ = good_bins_;
+  flow_csv_ = good_flow_csv_;
   sample_position_ = good_sample_position_;
   sample_seen_ = good_sample_seen_;
   if (!good_force_.empty()) verlet_.restore_forces(good_force_, good_torque_);
@@ -782,6 +817,8 @@ void visit_tally(Tally& t, F&& f) {
   f("removed_mass", t.removed_mass);
   f("flow_mass", t.flow_mass);
   f("flow_time", t.flow_time);
+  f("flow_mass_total", t.flow_mass_total);
+  f("next_flow_record", t.next_flow_record);
   f("in_contact", t.in_contact);
   f("collisions", t.collisions);
   f("contact_start", t.contact_start);
@@ -877,6 +914,8 @@ std::vector<io::OutputGrid> DemSystem::write_output(io::Hdf5File& file,
       io::write_text_atomically(file.path().parent_path() / "statistics.csv", bins_.csv());
   }
   if (curtain_ && tally_.opened_at >= 0) write_curtain_state(file.path().parent_path());
+  if (measure_flow_ && mpi::is_root())
+    io::write_text_atomically(file.path().parent_path() / "flow.csv", flow_csv_);
   const std::string base = file_name + ":/particles/";
   std::vector<io::XdmfArray> arrays = {{"radius", base + "radius", 1},
                                        {"velocity", base + "velocity", 3},
@@ -924,6 +963,7 @@ void DemSystem::write_checkpoint(io::Hdf5Group& group) {
   visit_tally(tally_, [&](const char* name, auto& value) { g.set_attribute(name, value); });
   g.set_attribute("initial_energy", initial_energy_);
   g.set_attribute("initial_mobile", initial_mobile_);
+  g.write_text("flow_csv", flow_csv_);
   const bool forces = !runge_kutta_ && verlet_.has_forces();
   write_replicated(g, "integrator_force", forces ? flatten(verlet_.forces()) : std::vector<double>{}, 3);
   write_replicated(g, "integrator_torque", forces ? flatten(verlet_.torques()) : std::vector<double>{}, 3);
@@ -970,6 +1010,7 @@ void DemSystem::read_checkpoint(const io::Hdf5Group& group) {
   });
   initial_energy_ = g.real_attribute("initial_energy");
   initial_mobile_ = g.integer_attribute("initial_mobile");
+  flow_csv_ = g.read_text("flow_csv");
   const auto force = unflatten(read_all_real(g, "integrator_force"));
   if (!force.empty()) verlet_.restore_forces(force, unflatten(read_all_real(g, "integrator_torque")));
   else verlet_.reset();

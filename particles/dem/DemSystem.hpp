@@ -71,6 +71,8 @@ class DemSystem : public io::System {
     double removed_mass = 0;
     double flow_mass = 0;            ///< net mass through the flow plane in the window
     double flow_time = 0;            ///< time measured in the window
+    double flow_mass_total = 0;      ///< net mass through the plane since the gate opened
+    double next_flow_record = 0;     ///< time of the next flow.csv row
     // Collision probe (placement "collision").
     std::int64_t in_contact = 0;
     std::int64_t collisions = 0;
@@ -97,6 +99,7 @@ class DemSystem : public io::System {
   void finish_settling_if_done();
   void remove_leaving_particles();
   void measure_flow(double dt);
+  void record_flow();
   void probe_collision(double dt);
   void sample_statistics();
   double surface_gap() const;
@@ -122,6 +125,8 @@ class DemSystem : public io::System {
   double settle_time_ = 0, settle_speed_ = 0, settle_damping_ = 0;
   double flow_plane_ = 0, flow_start_ = 0, flow_end_ = 0;
   bool measure_flow_ = false;
+  double flow_record_interval_ = 0;
+  std::string flow_csv_, good_flow_csv_;  ///< t, drained mass, mass above the plane, fill top
   std::optional<std::array<double, 2>> packing_window_;
   std::vector<std::size_t> gate_walls_;  ///< indices into finite_walls()
   struct RoughSegment {
@@ -156,6 +161,7 @@ class DemSystem : public io::System {
   std::vector<double> y_before_;
   std::vector<Vec3> scratch_velocity_;
   std::vector<std::uint8_t> scratch_use_;
+  std::vector<double> scratch_heights_;
 };
 
 }  // namespace grainwave::particles::dem

@@ -107,9 +107,9 @@ def restart_bitwise_with_history():
 def hopper_drain_flow_rate():
     """002 Fig. 3.4: the mass flow rate is independent of the fill height above a critical
     height, and lower below it (the fill no longer screens the outlet)."""
-    rates = {}
+    rates, outs = {}, {}
     for n in (300, 1000, 1500):
-        _, s = run_case("hopper_drain", f"dem.count={n}", tag=f"_{n}")
+        outs[n], s = run_case("hopper_drain", f"dem.count={n}", tag=f"_{n}")
         rates[n] = s["metrics"]["mass_flow_rate"]
         print(f"fill {n} disks: opened at {s['metrics']['gate_opened_at']:.3f} s, "
               f"mass flow rate {rates[n]:.3f} kg/s per m, {s['counts']['particles_removed']} drained")
@@ -119,12 +119,17 @@ def hopper_drain_flow_rate():
            f"{rates[1500]:.3f} kg/s/m ({100 * (rates[1000] / rates[1500] - 1):+.2f} %)")
     expect(rates[300] < 0.9 * rates[1500],
            f"below the critical height the rate falls: {rates[300]:.3f} kg/s/m")
+    flows = [os.path.join(outs[n], "flow.csv") for n in (300, 1000, 1500)]
+    proc = subprocess.run([sys.executable, os.path.join(SOURCE, "postprocess", "plot_dem_flow_rate.py"),
+                           *flows, "--window", "0.05"], capture_output=True, text=True)
+    png = os.path.join(outs[300], "flow_rate.png")
+    expect(proc.returncode == 0 and os.path.getsize(png) > 10000, f"rate vs fill height plotted to {png} {proc.stderr}")
 
 
 def hopper_drain_on_2_ranks():
     """The replicated DEM gives the same mass flow rate on 2 ranks (here: identical)."""
-    _, one = run_case("hopper_drain", "dem.count=600", tag="_r1")
-    _, two = run_case("hopper_drain", "dem.count=600", ranks=2, tag="_r2")
+    _, one = run_case("hopper_drain", "dem.count=300", tag="_r1")
+    _, two = run_case("hopper_drain", "dem.count=300", ranks=2, tag="_r2")
     a, b = one["metrics"]["mass_flow_rate"], two["metrics"]["mass_flow_rate"]
     expect(a == b, f"mass flow rate {a:.6f} (1 rank) and {b:.6f} (2 ranks)")
 
@@ -189,6 +194,32 @@ def hopper_restart_bitwise():
         expect(np.array_equal(a["particles/position"][()], b["particles/position"][()]) and
                np.array_equal(a["particles/velocity"][()], b["particles/velocity"][()]),
                "positions and velocities identical after the restart")
+
+
+def rough_hopper_walls():
+    """hopper_drain with its funnel walls made rough (a row of fixed disks, 002 Fig. 3.3): the
+    fixed disks never move, the fill still settles, the gate opens and the hopper drains."""
+    with open(case("hopper_drain.toml")) as f:
+        text = f.read()
+    rough = text.replace("b = [-0.009, 0.0]\n", "b = [-0.009, 0.0]\nrough = true\n").replace(
+        "b = [0.009, 0.0]\n", "b = [0.009, 0.0]\nrough = true\n")
+    expect(rough.count("rough = true") == 2, "both funnel walls made rough")
+    out = scratch("rough_hopper_walls")
+    scene = os.path.join(out, "hopper_rough.toml")
+    with open(scene, "w") as f:
+        f.write(rough)
+    grainwave("run", scene, "--out", out, "--set", "dem.count=300", "--set", "run.t_end=0.45", check=0)
+    s = summary(out)
+    expect(s["counts"]["fixed_particles"] > 20, f"{s['counts']['fixed_particles']} fixed wall disks")
+    expect(s["metrics"]["mass_flow_rate"] > 0 and s["counts"]["particles_removed"] > 0,
+           f"the hopper drains: {s['metrics']['mass_flow_rate']:.3f} kg/s/m, {s['counts']['particles_removed']} out")
+    files = sorted(glob.glob(os.path.join(out, "output_*.h5")))
+    with h5py.File(files[0]) as a, h5py.File(files[-1]) as b:
+        fa, fb = a["particles/flags"][()] == 1, b["particles/flags"][()] == 1
+        xa = a["particles/position"][()][fa]
+        xb = b["particles/position"][()][fb]
+        expect(np.array_equal(a["particles/id"][()][fa], b["particles/id"][()][fb]) and np.array_equal(xa, xb),
+               "the rough-wall disks stay where they were placed")
 
 
 def dense_bed_on_1_and_2_ranks():
@@ -259,4 +290,5 @@ if __name__ == "__main__":
                                   restart_bitwise_with_history, hopper_drain_flow_rate,
                                   hopper_drain_on_2_ranks, curtain_small_state,
                                   channel_small_plug_flow, channel_full, curtain_full,
-                                  hopper_restart_bitwise, dense_bed_on_1_and_2_ranks]})
+                                  hopper_restart_bitwise, dense_bed_on_1_and_2_ranks,
+                                  rough_hopper_walls]})
