@@ -1,5 +1,7 @@
 #include "particles/ParticleSystem.hpp"
 
+#include "particles/BoxParameters.hpp"
+
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -17,13 +19,7 @@
 namespace grainwave::particles {
 
 namespace {
-const std::vector<std::string> kFaceKinds = {"periodic", "wall", "open"};
 
-FaceKind face_kind(const std::string& s) {
-  if (s == "wall") return FaceKind::kWall;
-  if (s == "open") return FaceKind::kOpen;
-  return FaceKind::kPeriodic;
-}
 
 Vec3 vec3(const std::vector<double>& v) { return {v[0], v[1], v[2]}; }
 
@@ -43,15 +39,7 @@ void ParticleSystem::declare(SceneSchema& schema) {
   auto& s = schema.section("particles",
                            "Particles in a box: free flight under body forces, colliding as "
                            "hard spheres; builds the particle system.");
-  s.integer("dimension", 3, "2: disks in the x-y plane (unit depth); 3: spheres").in_range(2, 3);
-  s.reals("box_lo", std::nullopt, "lower corner of the box").of_length(3);
-  s.reals("box_hi", std::nullopt, "upper corner of the box").of_length(3);
-  for (const char* axis : {"x", "y", "z"})
-    s.texts(fmt::format("boundary_{}", axis), std::vector<std::string>{"periodic", "periodic"},
-            fmt::format("kind of the low and high {} faces", axis))
-        .one_of(kFaceKinds)
-        .of_length(2);
-  s.reals("gravity", std::vector<double>{0, 0, 0}, "body-force acceleration").of_length(3);
+  declare_box(s, {});
   s.text("placement", "random",
          "initial positions: random (non-overlapping), cubic or fcc lattice, or list "
          "([[particle]] entries)")
@@ -97,23 +85,7 @@ void ParticleSystem::declare(SceneSchema& schema) {
 
 ParticleSystem::ParticleSystem(const Scene& scene) {
   const auto& s = scene.section("particles");
-  domain_.dimension = static_cast<int>(s.integer("dimension"));
-  domain_.lo = vec3(s.reals("box_lo"));
-  domain_.hi = vec3(s.reals("box_hi"));
-  for (int k = 0; k < domain_.dimension; ++k)
-    if (domain_.hi[k] <= domain_.lo[k])
-      s.fail("box_hi", "the box must have box_hi > box_lo along every axis");
-  const char* axes[] = {"boundary_x", "boundary_y", "boundary_z"};
-  for (int k = 0; k < 3; ++k) {
-    const auto& faces = s.texts(axes[k]);
-    const FaceKind lo = face_kind(faces[0]), hi = face_kind(faces[1]);
-    if ((lo == FaceKind::kPeriodic) != (hi == FaceKind::kPeriodic))
-      s.fail(axes[k], "a periodic face needs a periodic opposite face");
-    domain_.face[static_cast<std::size_t>(k)] = {lo, hi};
-  }
-  gravity_ = vec3(s.reals("gravity"));
-  if (domain_.dimension == 2 && gravity_.z() != 0)
-    s.fail("gravity", "a 2D scene needs gravity with z = 0");
+  domain_ = read_box(s, gravity_);
 
   const std::string collisions = s.text("collisions");
   bool has_open = false, has_wall = false;

@@ -1,5 +1,7 @@
 #include "particles/dem/DemSystem.hpp"
 
+#include "particles/BoxParameters.hpp"
+
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -18,13 +20,7 @@
 namespace grainwave::particles::dem {
 
 namespace {
-const std::vector<std::string> kFaceKinds = {"periodic", "wall", "open"};
 
-FaceKind face_kind(const std::string& s) {
-  if (s == "wall") return FaceKind::kWall;
-  if (s == "open") return FaceKind::kOpen;
-  return FaceKind::kPeriodic;
-}
 
 Vec3 vec3(const std::vector<double>& v) { return {v[0], v[1], v[2]}; }
 
@@ -138,17 +134,7 @@ void DemSystem::declare(SceneSchema& schema) {
   auto& s = schema.section("dem",
                            "Soft-sphere DEM (002 ch. 3): contact laws, walls, hopper gate, "
                            "settling, recycling drag, flow statistics; SI units.");
-  s.integer("dimension", 3, "2: disks in the x-y plane (unit depth); 3: spheres").in_range(2, 3);
-  s.reals("box_lo", std::nullopt, "lower corner of the box [m]").of_length(3);
-  s.reals("box_hi", std::nullopt, "upper corner of the box [m]").of_length(3);
-  for (const char* axis : {"x", "y", "z"})
-    s.texts(fmt::format("boundary_{}", axis), std::vector<std::string>{"periodic", "periodic"},
-            fmt::format("kind of the low and high {} faces (open: particles leaving are removed)",
-                        axis))
-        .one_of(kFaceKinds)
-        .of_length(2);
-  s.reals("gravity", std::vector<double>{0, -9.81, 0}, "gravitational acceleration [m/s^2]")
-      .of_length(3);
+  declare_box(s, {" [m]", {0, -9.81, 0}});
   s.text("normal_law", "linear_spring_dashpot", "normal contact law").one_of(law_names(kNormalKeys));
   s.text("tangential_law", "static_friction", "tangential contact law")
       .one_of(law_names(kTangentialKeys));
@@ -258,24 +244,8 @@ void DemSystem::declare(SceneSchema& schema) {
 
 DemSystem::DemSystem(const Scene& scene) : scene_(scene) {
   const auto& s = scene.section("dem");
-  domain_.dimension = static_cast<int>(s.integer("dimension"));
-  domain_.lo = vec3(s.reals("box_lo"));
-  domain_.hi = vec3(s.reals("box_hi"));
-  if (domain_.dimension == 2) domain_.lo.z() = domain_.hi.z() = 0.0;
-  for (int k = 0; k < domain_.dimension; ++k)
-    if (domain_.hi[k] <= domain_.lo[k])
-      s.fail("box_hi", "the box must have box_hi > box_lo along every axis");
-  const char* axes[] = {"boundary_x", "boundary_y", "boundary_z"};
-  for (int k = 0; k < 3; ++k) {
-    const auto& faces = s.texts(axes[k]);
-    const FaceKind lo = face_kind(faces[0]), hi = face_kind(faces[1]);
-    if ((lo == FaceKind::kPeriodic) != (hi == FaceKind::kPeriodic))
-      s.fail(axes[k], "a periodic face needs a periodic opposite face");
-    domain_.face[static_cast<std::size_t>(k)] = {lo, hi};
-  }
-  gravity_ = vec3(s.reals("gravity"));
-  if (domain_.dimension == 2 && gravity_.z() != 0)
-    s.fail("gravity", "a 2D scene needs gravity with z = 0");
+  domain_ = read_box(s, gravity_);
+  if (domain_.dimension == 2) domain_.lo.z() = domain_.hi.z() = 0.0;  // disks live at z = 0
   density_ = s.real("density");
   read_contact_model(s);
   runge_kutta_ = s.text("integrator") == "runge_kutta2";
