@@ -19,6 +19,7 @@
 #include "io/AtomicFile.hpp"
 #include "io/Xdmf.hpp"
 #include "wavelet/AdaptiveGrid.hpp"
+#include "wavelet/GridCounts.hpp"
 
 namespace grainwave::fluid {
 
@@ -825,17 +826,7 @@ void FluidModel<Dim>::read_checkpoint(const io::Hdf5Group& group) {
 template <int Dim>
 void FluidModel<Dim>::report(io::Json& counts, io::Json& metrics, double step_wall_s, long) const {
   const double uniform = grid_->uniform_points();
-  const auto blocks = static_cast<std::int64_t>(grid_->global_blocks());
-  const double points = static_cast<double>(blocks) * static_cast<double>(grid_->points_per_block());
-  counts.set("blocks", blocks);
-  counts.set("points", static_cast<std::int64_t>(points));
-  int lmin = config_.max_level, lmax = 0;
-  for (const auto& k : grid_->forest().leaves()) {
-    lmin = std::min(lmin, k.level);
-    lmax = std::max(lmax, k.level);
-  }
-  counts.set("level_min", lmin);
-  counts.set("level_max", lmax);
+  const double points = wavelet::report_grid_counts(*grid_, counts);
   counts.set("rhs_evaluations", integrator_->rhs_evaluations());
 
   const auto [mass, energy] = totals();

@@ -11,6 +11,7 @@
 #include "io/AtomicFile.hpp"
 #include "io/Xdmf.hpp"
 #include "wavelet/AdaptiveGrid.hpp"
+#include "wavelet/GridCounts.hpp"
 
 namespace grainwave::wavelet {
 
@@ -431,17 +432,7 @@ void WaveletModel<Dim>::read_checkpoint(const io::Hdf5Group& group) {
 template <int Dim>
 void WaveletModel<Dim>::report(io::Json& counts, io::Json& metrics, double step_wall_s, long steps) const {
   const double uniform = grid_->uniform_points();
-  const auto blocks = static_cast<std::int64_t>(grid_->global_blocks());
-  const double points = static_cast<double>(blocks) * static_cast<double>(grid_->points_per_block());
-  counts.set("blocks", blocks);
-  counts.set("points", static_cast<std::int64_t>(points));
-  int lmin = config_.max_level, lmax = 0;
-  for (const auto& k : grid_->forest().leaves()) {
-    lmin = std::min(lmin, k.level);
-    lmax = std::max(lmax, k.level);
-  }
-  counts.set("level_min", lmin);
-  counts.set("level_max", lmax);
+  const double points = wavelet::report_grid_counts(*grid_, counts);
   // Error control: reconstruct to the uniform finest grid by prediction, compare with the profile
   // (skipped, reported as -1, where that grid would not fit: over kMaxReconstructionPoints).
   constexpr double kMaxReconstructionPoints = 3e7;
