@@ -1,0 +1,91 @@
+"""Bodies immersed by characteristic-based Brinkman penalization (fluid/ImmersedBodies.hpp,
+fluid/Penalization.hpp): the reflected-shock pressure at a penalized wall, the force time series,
+restart, 1 vs 2 ranks and bad body input (short runs), and the published drag, recirculation
+length, Strouhal number, Galilean invariance and control-volume cross-check (long runs, validate)."""
+import csv
+import os
+
+import numpy as np
+
+from gwtest import case, expect, grainwave, main, scratch, summary
+
+# A small, coarse cylinder run (D / 16 at the finest level) for the mechanics, not for accuracy.
+SMALL_CYLINDER = ["fluid.max_level=2", "fluid.lo=[-8.0,-8.0,0.0]", "fluid.hi=[16.0,8.0,1.0]", "fluid.roots=[3,2,1]",
+                  "fluid.sponge_width=3.0", "run.t_end=1.0", "output.interval=0.5", "penalization.average_after=0.5"]
+
+
+def run(name, *settings, ranks=None, check=0, out=None):
+    out = out or scratch(name.replace(".toml", ""))
+    sets = [item for s in settings for item in ("--set", s)]
+    proc = grainwave("run", case(name), *sets, "--out", out, ranks=ranks, check=check)
+    return summary(out), out, proc
+
+
+def read_forces(folder):
+    with open(os.path.join(folder, "forces.csv")) as f:
+        rows = list(csv.DictReader(f))
+    return {key: np.array([float(r[key]) for r in rows]) for key in rows[0]}
+
+
+def penalized_shock_reflection():
+    s, _, _ = run("shock_reflection_penalized.toml")
+    m = s["metrics"]
+    error = abs(m["p_reflected_over_p1"] / m["p_reflected_over_p1_exact"] - 1)
+    expect(s["status"] == "completed", f"completed in {s['steps']} steps")
+    expect(error <= 0.02, f"Ms 1.66: p5/p1 at the penalized wall {m['p_reflected_over_p1']:.4f} vs exact "
+                          f"{m['p_reflected_over_p1_exact']:.4f} ({100 * error:.3f}% <= 2%)")
+
+
+def penalized_cylinder_forces():
+    s, out, proc = run("cylinder_re40.toml", *SMALL_CYLINDER)
+    f = read_forces(out)
+    expect(len(f["t"]) == s["steps"] + 1, f"forces.csv holds one row per step and t = 0 ({len(f['t'])} rows)")
+    expect(np.all(np.isfinite(f["Fx"])) and f["Fx"][-1] > 0, f"the drag is finite and positive (Fx {f['Fx'][-1]:.4g})")
+    expect(abs(f["Fy"][-1]) <= 1e-8 * abs(f["Fx"][-1]), "no lift on a cylinder in a symmetric flow")
+    m = s["metrics"]
+    for key in ("Cd_mean", "Cd_control_volume", "Cl_amplitude", "body_mass_change", "points_fraction",
+                "significant_fraction"):
+        expect(key in m, f"summary.json reports {key} = {m.get(key)}")
+    expect("characteristic Brinkman penalization" in proc.stdout, "the log says how the body is imposed")
+
+
+def penalized_restart_is_exact():
+    settings = SMALL_CYLINDER + ["output.checkpoint_every_steps=20"]
+    _, full, _ = run("cylinder_re40.toml", *settings, out=scratch("cyl_full"))
+    part = scratch("cyl_restart")
+    run("cylinder_re40.toml", *settings, "run.max_steps=20", out=part)
+    checkpoint = os.path.join(part, "checkpoint_00000020.h5")
+    expect(os.path.exists(checkpoint), "checkpoint at step 20")
+    grainwave("run", case("cylinder_re40.toml"), *[x for s in settings for x in ("--set", s)], "--out", part,
+              "--restart", checkpoint, check=0)
+    a, b = read_forces(full), read_forces(part)
+    expect(all(np.array_equal(a[k], b[k]) for k in a), "the restarted force history equals the straight run's bitwise")
+
+
+def penalized_one_and_two_ranks():
+    runs = {ranks: run("cylinder_re40.toml", *SMALL_CYLINDER, ranks=ranks, out=scratch(f"cyl_ranks_{ranks}"))
+            for ranks in (1, 2)}
+    a, b = read_forces(runs[1][1]), read_forces(runs[2][1])
+    diff = np.max(np.abs(a["Fx"] - b["Fx"])) / np.max(np.abs(a["Fx"]))
+    expect(runs[2][0]["ranks"] == 2 and len(a["t"]) == len(b["t"]), "same number of steps on 2 ranks")
+    expect(diff <= 1e-9, f"the drag history agrees on 1 and 2 ranks (relative difference {diff:.2e})")
+
+
+def bad_body_input():
+    folder = scratch("bad_body")
+    scene = os.path.join(folder, "scene.toml")
+    with open(case("cylinder_re40.toml")) as f:
+        text = f.read().replace('shape = "cylinder"', 'shape = "sphere"')
+    with open(scene, "w") as f:
+        f.write(text)
+    proc = grainwave("run", scene, "--out", os.path.join(folder, "out"), check=2)
+    expect("scene.toml:" in proc.stderr and "shape" in proc.stderr and "3D" in proc.stderr,
+           f"a sphere in a 2D fluid is refused with file, line and key: {proc.stderr.strip().splitlines()[0]}")
+    expect(not os.path.exists(os.path.join(folder, "out", "summary.json")), "nothing written")
+
+
+if __name__ == "__main__":
+    main({f"penalization_{f.__name__.removeprefix('penalized_')}" if not f.__name__.startswith("bad") else
+          f"penalization_{f.__name__}": f
+          for f in [penalized_shock_reflection, penalized_cylinder_forces, penalized_restart_is_exact,
+                    penalized_one_and_two_ranks, bad_body_input]})
