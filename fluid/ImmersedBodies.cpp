@@ -125,7 +125,7 @@ void declare_penalization(SceneSchema& schema) {
       "penalization",
       "Parameters of the characteristic-based Brinkman volume penalization of the [[body]] entries "
       "(002 Eqs 2.27-2.30; Brown-Dymkoski, Kasimov & Vasilyev 2014).");
-  s.real("eta_b", 0.0, "Brinkman permeability eta_b (no-slip); 0: 0.25 h, h the finest spacing").at_least(0);
+  s.real("eta_b", 0.0, "Brinkman permeability eta_b (no-slip; integrated exactly, so it does not limit the step); 0: 0.01 h, h the finest spacing").at_least(0);
   s.real("eta_c", 0.0,
          "characteristic penalization eta_c (Neumann conditions on rho and T; 1/eta_c is the speed at which "
          "the wall values are carried into the body); 0: 1 (the reference sound speed)")

@@ -3,11 +3,14 @@
 // Vasilyev, J. Comput. Phys. 262 (2014)): their shapes as signed distances, the smoothed mask
 // chi, the inward normal n and the rigid-body velocity field u0 = v + omega x (x - centre).
 //
-// The mask is a smoothed step of the signed distance d (positive inside the body):
-//     chi(d) = 0 for d <= -w,  1 for d >= w,  (1 + d/w + sin(pi d / w) / pi) / 2 between,
+// The mask is a smoothed step S of the signed distance d (positive inside the body),
+//     S(d; w) = 0 for d <= -w,  1 for d >= w,  (1 + d/w + sin(pi d / w) / pi) / 2 between,
 // continuous with its first derivative, so the penalized solution and its derivatives stay
-// smooth for the central stencils. w is the smoothing half-width, set per scene in units of the
-// finest grid spacing. The body surface is d = 0, where chi = 1/2.
+// smooth for the central stencils; w is the smoothing half-width, set per scene in units of the
+// finest grid spacing. The penalization mask is chi = S(d - w; w): its step lies inside the body
+// (0 <= d <= 2w). The Brinkman term is strong wherever chi >> eta_b / (flow time), which starts a
+// fraction of a spacing inside d = 0, so the gas sees the no-slip surface at the body's surface
+// rather than at the outer edge of a centred step (an O(w) error in the effective size).
 //
 // Prescribed motion: constant translational velocity v and angular velocity omega; the centre
 // moves as centre(t) = centre(0) + v t. Particles moved by the fluid enter through the same

@@ -46,7 +46,8 @@ def penalized_cylinder_forces():
     for key in ("Cd_mean", "Cd_control_volume", "Cl_amplitude", "body_mass_change", "points_fraction",
                 "significant_fraction"):
         expect(key in m, f"summary.json reports {key} = {m.get(key)}")
-    expect("characteristic Brinkman penalization" in proc.stdout, "the log says how the body is imposed")
+    with open(os.path.join(out, "log.txt")) as f:
+        expect("characteristic Brinkman penalization" in f.read(), "the log says how the body is imposed")
 
 
 def penalized_restart_is_exact():
@@ -84,8 +85,50 @@ def bad_body_input():
     expect(not os.path.exists(os.path.join(folder, "out", "summary.json")), "nothing written")
 
 
+def check_cylinder(name, cd_range, lr_range=None, st_range=None):
+    s, out, _ = run(name)
+    m = s["metrics"]
+    expect(s["status"] == "completed", f"{name} completed in {s['steps']} steps, {s['wall_s']:.0f} s")
+    expect(cd_range[0] <= m["Cd_mean"] <= cd_range[1], f"Cd_mean {m['Cd_mean']:.4f} within {cd_range}")
+    if lr_range:
+        expect(lr_range[0] <= m["Lr_over_D"] <= lr_range[1], f"Lr_over_D {m['Lr_over_D']:.3f} within {lr_range}")
+    if st_range:
+        expect(st_range[0] <= m.get("St", 0) <= st_range[1], f"St {m.get('St')} within {st_range}")
+    cv = abs(m["Cd_control_volume"] / m["Cd_mean"] - 1)
+    expect(cv <= 0.03, f"control-volume drag {m['Cd_control_volume']:.4f} within 3% of the volume integral ({100 * cv:.2f}%)")
+    expect(m["body_mass_change"] <= 0.05, f"mass inside the body stays bounded (changed by {100 * m['body_mass_change']:.2f}%)")
+    return m
+
+
+def penalized_cylinder_re40():
+    check_cylinder("cylinder_re40.toml", (1.50, 1.58), lr_range=(2.10, 2.35))
+
+
+def penalized_cylinder_re20():
+    check_cylinder("cylinder_re20.toml", (2.00, 2.09))
+
+
+def penalized_cylinder_re100():
+    check_cylinder("cylinder_re100.toml", (1.30, 1.38), st_range=(0.160, 0.168))
+
+
+def penalized_galilean_invariance():
+    fixed, _, _ = run("cylinder_re40.toml", out=scratch("galilean_fixed"))
+    moving, _, _ = run("cylinder_moving_re40.toml", out=scratch("galilean_moving"))
+    a, b = fixed["metrics"]["Cd_mean"], moving["metrics"]["Cd_mean"]
+    expect(abs(b / a - 1) <= 0.02, f"moving cylinder Cd_mean {b:.4f} vs fixed {a:.4f} ({100 * abs(b / a - 1):.2f}% <= 2%)")
+
+
+def penalized_two_cylinders():
+    s, _, _ = run("two_cylinders.toml")
+    m = s["metrics"]
+    expect(s["status"] == "completed", f"completed in {s['steps']} steps")
+    expect(m["points_fraction"] <= 0.01, f"points_fraction {m['points_fraction']:.4f} <= 1% (002: 0.3%)")
+
+
 if __name__ == "__main__":
     main({f"penalization_{f.__name__.removeprefix('penalized_')}" if not f.__name__.startswith("bad") else
           f"penalization_{f.__name__}": f
           for f in [penalized_shock_reflection, penalized_cylinder_forces, penalized_restart_is_exact,
-                    penalized_one_and_two_ranks, bad_body_input]})
+                    penalized_one_and_two_ranks, bad_body_input, penalized_cylinder_re40, penalized_cylinder_re20,
+                    penalized_cylinder_re100, penalized_galilean_invariance, penalized_two_cylinders]})
