@@ -1333,6 +1333,13 @@ std::vector<io::OutputGrid> FluidModel<Dim>::write_output(io::Hdf5File& file, co
   g.write_rows("p", interior_rows(*grid_, interior_at_, [&](std::size_t s, std::size_t at) { return primitive(s, at).p; }).data(),
                local, per_block);
   arrays.push_back({"p", "Float"});
+  if (penalized()) {  // the mask, to see the bodies in ParaView
+    std::vector<double> chi(local * per_block, 0.0);
+    for (std::size_t s = 0; s < local; ++s)
+      for (const auto& m : masked_[s]) chi[s * per_block + m.point] = m.chi;
+    g.write_rows("chi", chi.data(), local, per_block);
+    arrays.push_back({"chi", "Float"});
+  }
   std::vector<std::int64_t> level;
   level.reserve(local * per_block);
   for (std::size_t s = 0; s < local; ++s) level.insert(level.end(), per_block, grid_->key(s).level);
