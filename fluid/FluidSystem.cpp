@@ -789,8 +789,9 @@ void FluidModel<Dim>::measure_forces(double t) {
   // the surface, where the wall shear lives (inside the body the velocity is rigid and tau ~ 0,
   // so a weight centred on the surface would see half of it); and the control-volume momentum balance with a smooth
   // box weight W around the body (1 near it, 0 outside the box),
-  //     F_cv = int grad W . Pi dV - d/dt int W rho u dV,   Pi = rho u u + (p - p_far) I - tau,
-  // which measures the momentum flux far from the body: an independent cross-check.
+  //     F_cv = int grad W . Pi dV - d/dt int W rho u dV,   Pi = rho (u - v) u + (p - p_far) I - tau,
+  // with v the velocity of the box (it moves with the body; d/dt is the total derivative of the
+  // moving integral), which measures the momentum flux far from the body: an independent cross-check.
   grid_->fill_ghosts();
   fill_boundary_ghosts();
   const std::size_t bodies = penalization_.bodies.size();
@@ -802,7 +803,7 @@ void FluidModel<Dim>::measure_forces(double t) {
   const double inv_re = viscous_ ? 1 / reynolds_ : 0.0;
   std::vector<std::array<double, 3>> centre(bodies);
   for (std::size_t k = 0; k < bodies; ++k) centre[k] = penalization_.bodies[k].centre_at(t);
-  auto ramp_width = [&](const Body& b) { return 0.25 * b.control_half_width; };
+  auto ramp_width = [&](const Body& b) { return 0.5 * b.control_half_width; };
   for (std::size_t s = 0; s < grid_->local_blocks(); ++s) {
     const auto x0 = grid_->origin(grid_->key(s));
     const auto h = grid_->spacing(grid_->key(s).level);
@@ -899,7 +900,8 @@ void FluidModel<Dim>::measure_forces(double t) {
           double flux = 0;
           for (int j = 0; j < Dim; ++j) {
             const auto jj = static_cast<std::size_t>(j);
-            double pi = rho_[at] * u_[jj][at] * u_[ii][at] + (i == j ? p_[at] - p_far_ : 0.0);
+            // The box moves with the body (velocity v): momentum crosses it at u - v.
+            double pi = rho_[at] * (u_[jj][at] - body.velocity[jj]) * u_[ii][at] + (i == j ? p_[at] - p_far_ : 0.0);
             if (viscous_) pi -= inv_re * viscous_stress<Dim>(grad, mu_[at], j, i);
             flux += grad_w[jj] * pi;
           }
