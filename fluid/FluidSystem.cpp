@@ -1223,6 +1223,8 @@ double FluidModel<Dim>::max_stable_dt() const {
       rate = std::max(rate, r);
     }
   }
+  // The sponge's relaxation: explicit RK stays stable for dt * sigma below about 2.5.
+  if (sponge_width_ > 0) rate = std::max(rate, cfl_ * sponge_strength_ / 2.5);
   rate = mpi::max(rate);
   return rate > 0 ? cfl_ / rate : std::numeric_limits<double>::infinity();
 }
