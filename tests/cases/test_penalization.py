@@ -64,7 +64,8 @@ def penalized_restart_is_exact():
 
 
 def penalized_one_and_two_ranks():
-    runs = {ranks: run("cylinder_re40.toml", *SMALL_CYLINDER, ranks=ranks, out=scratch(f"cyl_ranks_{ranks}"))
+    # The moving cylinder: its mask and forced band move every step.
+    runs = {ranks: run("cylinder_moving_re40.toml", *SMALL_CYLINDER, ranks=ranks, out=scratch(f"cyl_ranks_{ranks}"))
             for ranks in (1, 2)}
     a, b = read_forces(runs[1][1]), read_forces(runs[2][1])
     diff = np.max(np.abs(a["Fx"] - b["Fx"])) / np.max(np.abs(a["Fx"]))
