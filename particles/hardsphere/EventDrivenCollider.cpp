@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -111,42 +112,129 @@ double EventDrivenCollider::next_crossing(int i, const Vec3& x, const Vec3& v, i
   return best;
 }
 
-template <bool kAccelerated>
-void EventDrivenCollider::scan_cell(int i, int cell, const Vec3& x, const Vec3& v, Pending& p) {
-  // Locals, not members, in the loop: stores to p would otherwise force reloads (aliasing).
-  const Vec3 a = acceleration_;
-  const double now = now_;
-  const double r = flight_[static_cast<std::size_t>(i)].radius;
-  const Flight* flight = flight_.data();
-  const int* next = next_.data();
-  double best = p.collision_time;
-  int partner = -1;
-  long checks = 0;
-  for (int j = head_[static_cast<std::size_t>(cell)]; j >= 0; j = next[j]) {
-    if (j == i) continue;
-    ++checks;
-    const Flight& fj = flight[j];
-    const double tau = now - fj.clock;
-    // Uniform acceleration cancels in the relative motion: only velocities differ.
-    Vec3 d = fj.position + fj.velocity * tau - x;
-    Vec3 u = fj.velocity - v;
-    if constexpr (kAccelerated) {
-      d += 0.5 * a * tau * tau;
-      u += a * tau;
-    }
-    for (int axis = 0; axis < dimension_; ++axis) {  // minimum image (Domain::separation)
-      if (!periodic_[static_cast<std::size_t>(axis)]) continue;
-      const double length = length_[axis];
-      if (d[axis] > 0.5 * length) d[axis] -= length;
-      else if (d[axis] < -0.5 * length) d[axis] += length;
-    }
-    const double when = now + ballistic_contact_time_or_never(d, u, r + fj.radius);
-    if (when < best) {
-      best = when;
-      partner = j;
+void EventDrivenCollider::bin(int i, int cell) {
+  const auto c = static_cast<std::size_t>(cell);
+  const int slot = cell * capacity_ + occupancy_[c]++;
+  slots_[static_cast<std::size_t>(slot)] = i;
+  slot_of_[static_cast<std::size_t>(i)] = slot;
+}
+
+void EventDrivenCollider::unbin(int i) {
+  // The cell's last particle fills the hole, so every block stays dense.
+  const int slot = slot_of_[static_cast<std::size_t>(i)];
+  const int cell = slot / capacity_;
+  const int last = cell * capacity_ + --occupancy_[static_cast<std::size_t>(cell)];
+  const int moved = slots_[static_cast<std::size_t>(last)];
+  slots_[static_cast<std::size_t>(slot)] = moved;
+  slot_of_[static_cast<std::size_t>(moved)] = slot;
+}
+
+void EventDrivenCollider::grow_cells() {
+  const int old_capacity = capacity_;
+  capacity_ *= 2;
+  std::vector<int> grown(occupancy_.size() * static_cast<std::size_t>(capacity_), -1);
+  for (std::size_t c = 0; c < occupancy_.size(); ++c) {
+    for (int k = 0; k < occupancy_[c]; ++k) {
+      const int slot = static_cast<int>(c) * capacity_ + k;
+      const int i = slots_[c * static_cast<std::size_t>(old_capacity) + static_cast<std::size_t>(k)];
+      grown[static_cast<std::size_t>(slot)] = i;
+      slot_of_[static_cast<std::size_t>(i)] = slot;
     }
   }
-  pair_checks_ += checks;
+  slots_.swap(grown);
+  candidates_.assign(27 * static_cast<std::size_t>(capacity_), -1);
+  columns_.resize(candidates_.size());
+}
+
+int EventDrivenCollider::gather(const int* cells, int count) {
+  // Whole blocks are copied and the write position advanced by the occupancy: no branch per
+  // cell. candidates_ holds 27 blocks, so the copy of the last one still fits.
+  const int* slots = slots_.data();
+  const int* occupancy = occupancy_.data();
+  int* out = candidates_.data();
+  const int capacity = capacity_;
+  int gathered = 0;
+  for (int k = 0; k < count; ++k) {
+    const int cell = cells[k];
+    const int* block = slots + cell * capacity;
+    for (int chunk = 0; chunk < capacity; chunk += kSlotChunk) {
+      std::memcpy(out + gathered + chunk, block + chunk, kSlotChunk * sizeof(int));
+    }
+    gathered += occupancy[cell];
+  }
+  return gathered;
+}
+
+template <bool kAccelerated>
+void EventDrivenCollider::scan_candidates(int i, int count, const Vec3& x, const Vec3& v, Pending& p) {
+  // Three passes: copy the candidates' flight states into contiguous columns, take all contact
+  // times there (independent iterations, selects instead of branches: the compiler vectorises
+  // it), then pick the earliest. Locals, not members, in the loops: stores would otherwise force
+  // reloads (aliasing).
+  const Flight* flight = flight_.data();
+  const int* candidates = candidates_.data();
+  CandidateColumns& columns = columns_;
+  double* const px = columns.x.data();
+  double* const py = columns.y.data();
+  double* const pz = columns.z.data();
+  double* const wx = columns.vx.data();
+  double* const wy = columns.vy.data();
+  double* const wz = columns.vz.data();
+  double* const clock = columns.clock.data();
+  double* const radius = columns.radius.data();
+  double* const times = columns.time.data();
+  for (int k = 0; k < count; ++k) {
+    const Flight& fj = flight[candidates[k]];
+    px[k] = fj.position.x();
+    py[k] = fj.position.y();
+    pz[k] = fj.position.z();
+    wx[k] = fj.velocity.x();
+    wy[k] = fj.velocity.y();
+    wz[k] = fj.velocity.z();
+    clock[k] = fj.clock;
+    radius[k] = fj.radius;
+  }
+  const double ax = acceleration_.x(), ay = acceleration_.y(), az = acceleration_.z();
+  const double lx = length_.x(), ly = length_.y(), lz = length_.z();
+  const double hx = half_image_[0], hy = half_image_[1], hz = half_image_[2];
+  const double xx = x.x(), xy = x.y(), xz = x.z();
+  const double vx = v.x(), vy = v.y(), vz = v.z();
+  const double now = now_;
+  const double r = flight[i].radius;
+  for (int k = 0; k < count; ++k) {
+    const double tau = now - clock[k];
+    // Uniform acceleration cancels in the relative motion: only velocities differ.
+    double dx = px[k] + wx[k] * tau - xx;
+    double dy = py[k] + wy[k] * tau - xy;
+    double dz = pz[k] + wz[k] * tau - xz;
+    double ux = wx[k] - vx, uy = wy[k] - vy, uz = wz[k] - vz;
+    if constexpr (kAccelerated) {
+      dx += 0.5 * ax * tau * tau;
+      dy += 0.5 * ay * tau * tau;
+      dz += 0.5 * az * tau * tau;
+      ux += ax * tau;
+      uy += ay * tau;
+      uz += az * tau;
+    }
+    // Minimum image (Domain::separation); h is +inf on axes that are not periodic.
+    dx = dx > hx ? dx - lx : (dx < -hx ? dx + lx : dx);
+    dy = dy > hy ? dy - ly : (dy < -hy ? dy + ly : dy);
+    dz = dz > hz ? dz - lz : (dz < -hz ? dz + lz : dz);
+    // ballistic_contact_time_or_never (CollisionTime.hpp), spelled out on plain doubles.
+    const double sigma = r + radius[k];
+    const double b = dx * ux + dy * uy + dz * uz;
+    const double c = dx * dx + dy * dy + dz * dz - sigma * sigma;
+    const double discriminant = b * b - (ux * ux + uy * uy + uz * uz) * c;
+    const double t = std::max(0.0, c / (std::sqrt(std::max(discriminant, 0.0)) - b));
+    times[k] = (b < 0.0 && discriminant >= 0.0) ? now + t : kNever;
+  }
+  double best = p.collision_time;
+  int partner = -1;
+  for (int k = 0; k < count; ++k) {
+    const bool earlier = times[k] < best && candidates[k] != i;
+    best = earlier ? times[k] : best;
+    partner = earlier ? candidates[k] : partner;
+  }
   if (partner >= 0) {
     p.collision_time = best;
     p.partner = partner;
@@ -154,9 +242,10 @@ void EventDrivenCollider::scan_cell(int i, int cell, const Vec3& x, const Vec3& 
   }
 }
 
-void EventDrivenCollider::scan(int i, int cell, const Vec3& x, const Vec3& v, Pending& p) {
-  if (accelerated_) scan_cell<true>(i, cell, x, v, p);
-  else scan_cell<false>(i, cell, x, v, p);
+void EventDrivenCollider::scan(int i, int count, const Vec3& x, const Vec3& v, Pending& p) {
+  pair_checks_ += count;
+  if (accelerated_) scan_candidates<true>(i, count, x, v, p);
+  else scan_candidates<false>(i, count, x, v, p);
 }
 
 void EventDrivenCollider::predict(const ParticleStore& store, int i, int layer) {
@@ -194,14 +283,17 @@ void EventDrivenCollider::predict(const ParticleStore& store, int i, int layer) 
   }
   const auto cell = static_cast<std::size_t>(cell_index(c));
   if (layer < 0) {
-    for (int s = stencil_start_[cell]; s < stencil_start_[cell + 1]; ++s) {
-      scan(i, stencil_[static_cast<std::size_t>(s)], x, v, p);
-    }
+    const int first = stencil_start_[cell];
+    const int count = gather(stencil_.data() + first, stencil_start_[cell + 1] - first);
+    scan(i, count, x, v, p);
+    --pair_checks_;  // i itself was among the candidates
   } else {
     // Only the layer ahead of the crossed face is new; the rest was scanned before.
     const int along = layer / 2;
     const int ahead = layer % 2 == 0 ? -1 : 1;
     const int reach_z = dimension_ == 3 ? 1 : 0;
+    std::array<int, 9> layer_cells{};
+    int n_layer = 0;
     for (int dz = -reach_z; dz <= reach_z; ++dz) {
       for (int dy = -1; dy <= 1; ++dy) {
         for (int dx = -1; dx <= 1; ++dx) {
@@ -214,10 +306,11 @@ void EventDrivenCollider::predict(const ParticleStore& store, int i, int layer) 
             if (periodic_[ax]) nb[ax] = (nb[ax] + cells_[ax]) % cells_[ax];
             else inside = false;
           }
-          if (inside) scan(i, cell_index(nb), x, v, p);
+          if (inside) layer_cells[static_cast<std::size_t>(n_layer++)] = cell_index(nb);
         }
       }
     }
+    scan(i, gather(layer_cells.data(), n_layer), x, v, p);
   }
   if (fixed && p.partner >= 0 && store.is_fixed(static_cast<std::size_t>(p.partner))) {
     p.collision_time = kNever;  // two immovable particles never collide (fixed ones are at rest)
@@ -254,6 +347,7 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
   for (int k = 0; k < 3; ++k) {
     const auto ax = static_cast<std::size_t>(k);
     wall_[ax] = {false, false};
+    half_image_[ax] = kNever;
     if (k >= dimension_) {
       cells_[ax] = 1;
       cell_size_[ax] = 1.0;
@@ -267,6 +361,7 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
       wall_[ax][side] = domain.face[ax][side] == FaceKind::kWall;
     }
     periodic_[ax] = domain.periodic(k);
+    if (periodic_[ax]) half_image_[ax] = 0.5 * length_[k];
     cells_[ax] = std::max(1, static_cast<int>(std::floor(length_[k] / (2.0 * max_radius))));
     if (periodic_[ax] && cells_[ax] < 3) {
       throw std::invalid_argument("EventDrivenCollider: periodic axis " + std::to_string(k) +
@@ -297,10 +392,8 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
         stencil_start_[static_cast<std::size_t>(cell_index({cx, cy, cz})) + 1] =
             static_cast<int>(stencil_.size());
       }
-  head_.assign(n_cells, -1);
-  next_.assign(n, -1);
-  prev_.assign(n, -1);
   cell_of_.resize(n);
+  slot_of_.resize(n);
   flight_.resize(n);
   counter_.assign(n, 0u);
   burst_start_.assign(n, -kNever);
@@ -320,11 +413,17 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
       const double s = (flight_[i].position[k] - lo_[k]) / cell_size_[ax];
       cell_of_[i][ax] = k >= dimension_ ? 0 : std::clamp(static_cast<int>(std::floor(s)), 0, cells_[ax] - 1);
     }
-    const auto cell = static_cast<std::size_t>(cell_index(cell_of_[i]));
-    next_[i] = head_[cell];
-    if (head_[cell] >= 0) prev_[static_cast<std::size_t>(head_[cell])] = static_cast<int>(i);
-    head_[cell] = static_cast<int>(i);
   }
+  // Blocks with room to spare over the fullest cell, so that growing mid-step is rare.
+  occupancy_.assign(n_cells, 0);
+  for (std::size_t i = 0; i < n; ++i) ++occupancy_[static_cast<std::size_t>(cell_index(cell_of_[i]))];
+  const int fullest = n_cells > 0 ? *std::max_element(occupancy_.begin(), occupancy_.end()) : 0;
+  capacity_ = kSlotChunk * ((fullest + fullest / 2 + 2 + kSlotChunk - 1) / kSlotChunk);
+  std::fill(occupancy_.begin(), occupancy_.end(), 0);
+  slots_.assign(n_cells * static_cast<std::size_t>(capacity_), -1);
+  candidates_.assign(27 * static_cast<std::size_t>(capacity_), -1);
+  columns_.resize(candidates_.size());
+  for (std::size_t i = 0; i < n; ++i) bin(static_cast<int>(i), cell_index(cell_of_[i]));
   for (std::size_t i = 0; i < n; ++i) predict(store, static_cast<int>(i), -1);
 }
 
@@ -344,21 +443,16 @@ EventStats EventDrivenCollider::advance_to(ParticleStore& store, const Domain& d
       const auto ax = static_cast<std::size_t>(axis);
       const int step = face % 2 == 0 ? -1 : 1;
       sync(store, i, now_);
-      const auto old_cell = static_cast<std::size_t>(cell_index(cell_of_[a]));
-      if (prev_[a] >= 0) next_[static_cast<std::size_t>(prev_[a])] = next_[a];
-      else head_[old_cell] = next_[a];
-      if (next_[a] >= 0) prev_[static_cast<std::size_t>(next_[a])] = prev_[a];
+      unbin(i);
       int c = cell_of_[a][ax] + step;
       if (c < 0) c += cells_[ax];
       if (c >= cells_[ax]) c -= cells_[ax];
       cell_of_[a][ax] = c;
       // Snap onto the shared face (wrapped) so the new cell's exit test starts exactly at 0.
       flight_[a].position[axis] = lo_[axis] + (step > 0 ? c : c + 1) * cell_size_[ax];
-      const auto new_cell = static_cast<std::size_t>(cell_index(cell_of_[a]));
-      prev_[a] = -1;
-      next_[a] = head_[new_cell];
-      if (head_[new_cell] >= 0) prev_[static_cast<std::size_t>(head_[new_cell])] = i;
-      head_[new_cell] = i;
+      const int new_cell = cell_index(cell_of_[a]);
+      if (occupancy_[static_cast<std::size_t>(new_cell)] == capacity_) grow_cells();
+      bin(i, new_cell);
       ++stats.cell_crossings;
       const bool stale = p.partner >= 0 && counter_[static_cast<std::size_t>(p.partner)] != p.partner_count;
       stats.stale_events += stale ? 1 : 0;
