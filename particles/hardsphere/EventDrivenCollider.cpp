@@ -54,28 +54,34 @@ double EventDrivenCollider::key(int i) const {
 }
 
 void EventDrivenCollider::heap_update(int i) {
-  auto place = [&](int slot, const HeapEntry& entry) {
-    heap_[static_cast<std::size_t>(slot)] = entry;
-    heap_position_[static_cast<std::size_t>(entry.particle)] = slot;
-  };
+  // A 4-ary heap: half the levels of a binary one, and the four children of a slot share a
+  // cache line (HeapEntry is 16 bytes), so a sift costs fewer dependent loads. The earliest child
+  // is found by a branch-free tournament; entries past the end are +inf sentinels.
+  HeapEntry* heap = heap_.data();
+  int* position = heap_position_.data();
+  const int n = static_cast<int>(heap_.size()) - (kHeapArity - 1);
   const HeapEntry entry{key(i), i};
-  int slot = heap_position_[static_cast<std::size_t>(i)];
+  int slot = position[i];
   while (slot > 0) {  // sift up
-    const int parent = (slot - 1) / 2;
-    if (!(heap_[static_cast<std::size_t>(parent)].time > entry.time)) break;
-    place(slot, heap_[static_cast<std::size_t>(parent)]);
+    const int parent = (slot - 1) / kHeapArity;
+    if (!(heap[parent].time > entry.time)) break;
+    heap[slot] = heap[parent];
+    position[heap[slot].particle] = slot;
     slot = parent;
   }
-  const int n = static_cast<int>(heap_.size());
   while (true) {  // sift down
-    int child = 2 * slot + 1;
-    if (child >= n) break;
-    if (child + 1 < n && heap_[static_cast<std::size_t>(child + 1)].time < heap_[static_cast<std::size_t>(child)].time) ++child;
-    if (!(heap_[static_cast<std::size_t>(child)].time < entry.time)) break;
-    place(slot, heap_[static_cast<std::size_t>(child)]);
+    const int first = kHeapArity * slot + 1;
+    if (first >= n) break;
+    const int left = first + static_cast<int>(heap[first + 1].time < heap[first].time);
+    const int right = first + 2 + static_cast<int>(heap[first + 3].time < heap[first + 2].time);
+    const int child = heap[right].time < heap[left].time ? right : left;
+    if (!(heap[child].time < entry.time)) break;
+    heap[slot] = heap[child];
+    position[heap[slot].particle] = slot;
     slot = child;
   }
-  place(slot, entry);
+  heap[slot] = entry;
+  position[i] = slot;
 }
 
 void EventDrivenCollider::sync(ParticleStore& store, int i, double t) {
@@ -94,21 +100,34 @@ double EventDrivenCollider::next_crossing(int i, const Vec3& x, const Vec3& v, i
   const auto k = static_cast<std::size_t>(i);
   const Vec3& a = acceleration_;
   double best = kNever;
+  int best_face = 0;
   for (int axis = 0; axis < dimension_; ++axis) {
     const auto ax = static_cast<std::size_t>(axis);
     const int c = cell_of_[k][ax];
     // Leaving through a wall face is impossible (the wall collision comes first).
-    if (c > 0 || periodic_[ax]) {
-      const double lower = lo_[axis] + c * cell_size_[ax];
-      const double t = first_descent(x[axis] - lower, v[axis], 0.5 * a[axis], true);
-      if (t < best) { best = t; *face = 2 * axis; }
+    const bool lower_open = c > 0 || periodic_[ax];
+    const bool upper_open = c < cells_[ax] - 1 || periodic_[ax];
+    const double gap_lower = x[axis] - (lo_[axis] + c * cell_size_[ax]);
+    const double gap_upper = lo_[axis] + (c + 1) * cell_size_[ax] - x[axis];
+    double t_lower = kNever, t_upper = kNever;
+    if (accelerated_) {
+      if (lower_open) t_lower = first_descent(gap_lower, v[axis], 0.5 * a[axis], true);
+      if (upper_open) t_upper = first_descent(gap_upper, -v[axis], -0.5 * a[axis], true);
+    } else {
+      // first_descent(gap, rate, 0, true) by selects (same arithmetic): the common case, where
+      // the branches of the general root would be mispredicted about half the time.
+      const double rate = v[axis];
+      const double lower_time = gap_lower < 0.0 ? 0.0 : (rate < 0.0 ? -gap_lower / rate : kNever);
+      const double upper_time = gap_upper < 0.0 ? 0.0 : (-rate < 0.0 ? -gap_upper / -rate : kNever);
+      t_lower = lower_open ? lower_time : kNever;
+      t_upper = upper_open ? upper_time : kNever;
     }
-    if (c < cells_[ax] - 1 || periodic_[ax]) {
-      const double upper = lo_[axis] + (c + 1) * cell_size_[ax];
-      const double t = first_descent(upper - x[axis], -v[axis], -0.5 * a[axis], true);
-      if (t < best) { best = t; *face = 2 * axis + 1; }
-    }
+    best_face = t_lower < best ? 2 * axis : best_face;
+    best = t_lower < best ? t_lower : best;
+    best_face = t_upper < best ? 2 * axis + 1 : best_face;
+    best = t_upper < best ? t_upper : best;
   }
+  *face = best_face;
   return best;
 }
 
@@ -142,13 +161,14 @@ void EventDrivenCollider::grow_cells() {
     }
   }
   slots_.swap(grown);
-  candidates_.assign(27 * static_cast<std::size_t>(capacity_), -1);
+  candidates_.assign(27 * static_cast<std::size_t>(capacity_) + 1, -1);
   columns_.resize(candidates_.size());
 }
 
 int EventDrivenCollider::gather(const int* cells, int count) {
-  // Whole blocks are copied and the write position advanced by the occupancy: no branch per
-  // cell. candidates_ holds 27 blocks, so the copy of the last one still fits.
+  // The first chunk of each block is copied whole and the write position advanced by the
+  // occupancy: no branch per cell, except for the rare cell fuller than one chunk.
+  // candidates_ holds 27 blocks, so the copy of the last one still fits.
   const int* slots = slots_.data();
   const int* occupancy = occupancy_.data();
   int* out = candidates_.data();
@@ -157,10 +177,13 @@ int EventDrivenCollider::gather(const int* cells, int count) {
   for (int k = 0; k < count; ++k) {
     const int cell = cells[k];
     const int* block = slots + cell * capacity;
-    for (int chunk = 0; chunk < capacity; chunk += kSlotChunk) {
-      std::memcpy(out + gathered + chunk, block + chunk, kSlotChunk * sizeof(int));
+    std::memcpy(out + gathered, block, kSlotChunk * sizeof(int));
+    const int occupied = occupancy[cell];
+    if (occupied > kSlotChunk) {
+      std::memcpy(out + gathered + kSlotChunk, block + kSlotChunk,
+                  static_cast<std::size_t>(occupied - kSlotChunk) * sizeof(int));
     }
-    gathered += occupancy[cell];
+    gathered += occupied;
   }
   return gathered;
 }
@@ -172,17 +195,20 @@ void EventDrivenCollider::scan_candidates(int i, int count, const Vec3& x, const
   // it), then pick the earliest. Locals, not members, in the loops: stores would otherwise force
   // reloads (aliasing).
   const Flight* flight = flight_.data();
-  const int* candidates = candidates_.data();
+  int* const candidates = candidates_.data();
+  // An even count keeps every candidate in the vectorised loop (none is left to a scalar
+  // remainder); the padding is i itself, which the last pass skips.
+  if (count % 2 != 0) candidates[count++] = i;
   CandidateColumns& columns = columns_;
-  double* const px = columns.x.data();
-  double* const py = columns.y.data();
-  double* const pz = columns.z.data();
-  double* const wx = columns.vx.data();
-  double* const wy = columns.vy.data();
-  double* const wz = columns.vz.data();
-  double* const clock = columns.clock.data();
-  double* const radius = columns.radius.data();
-  double* const times = columns.time.data();
+  double* __restrict const px = columns.x.data();
+  double* __restrict const py = columns.y.data();
+  double* __restrict const pz = columns.z.data();
+  double* __restrict const wx = columns.vx.data();
+  double* __restrict const wy = columns.vy.data();
+  double* __restrict const wz = columns.vz.data();
+  double* __restrict const clock = columns.clock.data();
+  double* __restrict const radius = columns.radius.data();
+  double* __restrict const times = columns.time.data();
   for (int k = 0; k < count; ++k) {
     const Flight& fj = flight[candidates[k]];
     px[k] = fj.position.x();
@@ -216,10 +242,13 @@ void EventDrivenCollider::scan_candidates(int i, int count, const Vec3& x, const
       uy += ay * tau;
       uz += az * tau;
     }
-    // Minimum image (Domain::separation); h is +inf on axes that are not periodic.
-    dx = dx > hx ? dx - lx : (dx < -hx ? dx + lx : dx);
-    dy = dy > hy ? dy - ly : (dy < -hy ? dy + ly : dy);
-    dz = dz > hz ? dz - lz : (dz < -hz ? dz + lz : dz);
+    // Minimum image (Domain::separation) as masked adds; h is +inf on axes that are not periodic.
+    dx -= dx > hx ? lx : 0.0;
+    dx += dx < -hx ? lx : 0.0;
+    dy -= dy > hy ? ly : 0.0;
+    dy += dy < -hy ? ly : 0.0;
+    dz -= dz > hz ? lz : 0.0;
+    dz += dz < -hz ? lz : 0.0;
     // ballistic_contact_time_or_never (CollisionTime.hpp), spelled out on plain doubles.
     const double sigma = r + radius[k];
     const double b = dx * ux + dy * uy + dz * uz;
@@ -243,7 +272,7 @@ void EventDrivenCollider::scan_candidates(int i, int count, const Vec3& x, const
 }
 
 void EventDrivenCollider::scan(int i, int count, const Vec3& x, const Vec3& v, Pending& p) {
-  pair_checks_ += count;
+  pair_checks_ += count;  // before scan_candidates() pads it
   if (accelerated_) scan_candidates<true>(i, count, x, v, p);
   else scan_candidates<false>(i, count, x, v, p);
 }
@@ -281,36 +310,18 @@ void EventDrivenCollider::predict(const ParticleStore& store, int i, int layer) 
       }
     }
   }
-  const auto cell = static_cast<std::size_t>(cell_index(c));
+  const int* stencil = stencil_.data() + static_cast<std::ptrdiff_t>(cell_index(c)) * stencil_size_;
   if (layer < 0) {
-    const int first = stencil_start_[cell];
-    const int count = gather(stencil_.data() + first, stencil_start_[cell + 1] - first);
-    scan(i, count, x, v, p);
+    scan(i, gather(stencil, stencil_size_), x, v, p);
     --pair_checks_;  // i itself was among the candidates
   } else {
     // Only the layer ahead of the crossed face is new; the rest was scanned before.
-    const int along = layer / 2;
-    const int ahead = layer % 2 == 0 ? -1 : 1;
-    const int reach_z = dimension_ == 3 ? 1 : 0;
     std::array<int, 9> layer_cells{};
-    int n_layer = 0;
-    for (int dz = -reach_z; dz <= reach_z; ++dz) {
-      for (int dy = -1; dy <= 1; ++dy) {
-        for (int dx = -1; dx <= 1; ++dx) {
-          std::array<int, 3> offset{dx, dy, dz};
-          if (offset[static_cast<std::size_t>(along)] != ahead) continue;
-          std::array<int, 3> nb{c[0] + dx, c[1] + dy, c[2] + dz};
-          bool inside = true;
-          for (std::size_t ax = 0; ax < 3; ++ax) {
-            if (nb[ax] >= 0 && nb[ax] < cells_[ax]) continue;
-            if (periodic_[ax]) nb[ax] = (nb[ax] + cells_[ax]) % cells_[ax];
-            else inside = false;
-          }
-          if (inside) layer_cells[static_cast<std::size_t>(n_layer++)] = cell_index(nb);
-        }
-      }
+    const auto& offsets = layer_offsets_[static_cast<std::size_t>(layer)];
+    for (int m = 0; m < layer_size_; ++m) {
+      layer_cells[static_cast<std::size_t>(m)] = stencil[offsets[static_cast<std::size_t>(m)]];
     }
-    scan(i, gather(layer_cells.data(), n_layer), x, v, p);
+    scan(i, gather(layer_cells.data(), layer_size_), x, v, p);
   }
   if (fixed && p.partner >= 0 && store.is_fixed(static_cast<std::size_t>(p.partner))) {
     p.collision_time = kNever;  // two immovable particles never collide (fixed ones are at rest)
@@ -370,16 +381,30 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
     cell_size_[ax] = length_[k] / cells_[ax];
   }
   const auto n_cells = static_cast<std::size_t>(cells_[0] * cells_[1] * cells_[2]);
-  // Adjacent cells of every cell (itself included), wrapped across periodic faces.
-  stencil_start_.assign(n_cells + 1, 0);
-  stencil_.clear();
+  // Adjacent cells of every cell (itself included), wrapped across periodic faces, at fixed
+  // positions (dz, dy, dx from -1 to 1, dz only 0 in 2D); a missing neighbour beyond a wall is the
+  // always empty cell n_cells. Positions of each face's layer: those one step across it.
   const int reach_z = dimension_ == 3 ? 1 : 0;
+  stencil_size_ = dimension_ == 3 ? 27 : 9;
+  layer_size_ = stencil_size_ / 3;
+  std::array<int, 6> layer_fill{};
+  for (int dz = -reach_z, position = 0; dz <= reach_z; ++dz)
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx, ++position) {
+        const std::array<int, 3> offset{dx, dy, dz};
+        for (std::size_t face = 0; face < 6; ++face) {
+          if (offset[face / 2] != (face % 2 == 0 ? -1 : 1)) continue;
+          layer_offsets_[face][static_cast<std::size_t>(layer_fill[face]++)] = position;
+        }
+      }
+  stencil_.assign(n_cells * static_cast<std::size_t>(stencil_size_), static_cast<int>(n_cells));
   for (int cz = 0; cz < cells_[2]; ++cz)
     for (int cy = 0; cy < cells_[1]; ++cy)
       for (int cx = 0; cx < cells_[0]; ++cx) {
+        auto entry = stencil_.begin() + static_cast<std::ptrdiff_t>(cell_index({cx, cy, cz})) * stencil_size_;
         for (int dz = -reach_z; dz <= reach_z; ++dz)
           for (int dy = -1; dy <= 1; ++dy)
-            for (int dx = -1; dx <= 1; ++dx) {
+            for (int dx = -1; dx <= 1; ++dx, ++entry) {
               std::array<int, 3> nb{cx + dx, cy + dy, cz + dz};
               bool inside = true;
               for (std::size_t ax = 0; ax < 3; ++ax) {
@@ -387,10 +412,8 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
                 if (periodic_[ax]) nb[ax] = (nb[ax] + cells_[ax]) % cells_[ax];
                 else inside = false;
               }
-              if (inside) stencil_.push_back(cell_index(nb));
+              if (inside) *entry = cell_index(nb);
             }
-        stencil_start_[static_cast<std::size_t>(cell_index({cx, cy, cz})) + 1] =
-            static_cast<int>(stencil_.size());
       }
   cell_of_.resize(n);
   slot_of_.resize(n);
@@ -400,7 +423,7 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
   burst_count_.assign(n, 0u);
   pending_.assign(n, Pending{kNever, kNever, kNoPartner, 0u, 0});
   angular_acceleration_.resize(n);
-  heap_.resize(n);
+  heap_.assign(n + kHeapArity - 1, HeapEntry{kNever, -1});  // sentinels: see heap_update()
   heap_position_.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
     heap_[i] = HeapEntry{kNever, static_cast<int>(i)};
@@ -415,13 +438,13 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
     }
   }
   // Blocks with room to spare over the fullest cell, so that growing mid-step is rare.
-  occupancy_.assign(n_cells, 0);
+  occupancy_.assign(n_cells + 1, 0);  // and the empty cell
   for (std::size_t i = 0; i < n; ++i) ++occupancy_[static_cast<std::size_t>(cell_index(cell_of_[i]))];
-  const int fullest = n_cells > 0 ? *std::max_element(occupancy_.begin(), occupancy_.end()) : 0;
+  const int fullest = *std::max_element(occupancy_.begin(), occupancy_.end());
   capacity_ = kSlotChunk * ((fullest + fullest / 2 + 2 + kSlotChunk - 1) / kSlotChunk);
   std::fill(occupancy_.begin(), occupancy_.end(), 0);
-  slots_.assign(n_cells * static_cast<std::size_t>(capacity_), -1);
-  candidates_.assign(27 * static_cast<std::size_t>(capacity_), -1);
+  slots_.assign(occupancy_.size() * static_cast<std::size_t>(capacity_), -1);
+  candidates_.assign(27 * static_cast<std::size_t>(capacity_) + 1, -1);
   columns_.resize(candidates_.size());
   for (std::size_t i = 0; i < n; ++i) bin(static_cast<int>(i), cell_index(cell_of_[i]));
   for (std::size_t i = 0; i < n; ++i) predict(store, static_cast<int>(i), -1);
@@ -432,7 +455,7 @@ EventStats EventDrivenCollider::advance_to(ParticleStore& store, const Domain& d
   predictions_ = pair_checks_ = 0;
   const std::size_t n = store.size();
   if (n != flight_.size()) throw std::logic_error("EventDrivenCollider: store changed size");
-  while (!heap_.empty() && heap_[0].time <= target) {
+  while (n > 0 && heap_[0].time <= target) {
     const int i = heap_[0].particle;
     const auto a = static_cast<std::size_t>(i);
     Pending& p = pending_[a];

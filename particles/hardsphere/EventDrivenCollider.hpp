@@ -9,7 +9,7 @@
 // state is stored at the time of its last event and extrapolated with Eqs 2.11–2.13 on demand.
 // Cells are at least one largest diameter wide. Each particle holds only its earliest predicted
 // collision (partner or wall, with the partner's collision counter at prediction time) and its
-// next cell crossing; an indexed binary heap over particles orders them. Why this is complete:
+// next cell crossing; an indexed 4-ary heap over particles orders them. Why this is complete:
 // every pair that will touch is adjacent from the later of the partners' last events on, and each
 // of those events scans the cells that became adjacent (all 27 after a collision, the new layer
 // of 9 after a crossing); a candidate whose partner has collided since is stale and triggers a
@@ -70,6 +70,7 @@ class EventDrivenCollider {
  private:
   static constexpr int kNoPartner = -1000;  ///< partners >= 0 are particles, -1 - face are walls
   static constexpr std::uint32_t kBurstLimit = 256;  ///< collisions of one particle a few ulps apart
+  static constexpr int kHeapArity = 4;  ///< children per node of the event heap
   static constexpr int kSlotChunk = 8;  ///< gather() copies blocks in chunks of this many slots
 
   /// Compact per-particle flight state (one cache line): what the pair scan reads.
@@ -129,10 +130,10 @@ class EventDrivenCollider {
   std::vector<std::uint32_t> burst_count_;
   std::vector<std::array<int, 3>> cell_of_;  ///< current cell of each particle
   int capacity_ = 8;                         ///< slots per cell, a multiple of kSlotChunk
-  std::vector<int> occupancy_;               ///< particles in each cell
+  std::vector<int> occupancy_;               ///< particles in each cell, and 0 in the empty one
   std::vector<int> slots_;                   ///< cell c: slots_[c capacity_ .. + occupancy_[c])
   std::vector<int> slot_of_;                 ///< index into slots_ of each particle
-  std::vector<int> candidates_;              ///< scratch of gather(): room for 27 whole blocks
+  std::vector<int> candidates_;              ///< scratch of gather(): 27 whole blocks and a pad
   /// Scratch of scan_candidates(): the candidates' flight states as columns, and their times.
   struct CandidateColumns {
     std::vector<double> x, y, z, vx, vy, vz, clock, radius, time;
@@ -141,13 +142,16 @@ class EventDrivenCollider {
     }
   };
   CandidateColumns columns_;
-  std::vector<int> stencil_start_, stencil_; ///< adjacent cells of each cell (CSR)
+  int stencil_size_ = 27;                    ///< adjacent cells of a cell, itself included
+  std::vector<int> stencil_;                 ///< stencil_size_ per cell (the empty cell past walls)
+  int layer_size_ = 9;                       ///< cells one step across a face
+  std::array<std::array<int, 9>, 6> layer_offsets_{};  ///< their positions in a stencil, per face
   std::vector<Vec3> angular_acceleration_;
   struct HeapEntry {
     double time;  ///< key() of the particle, cached for the sift loops
     int particle;
   };
-  std::vector<HeapEntry> heap_;              ///< indexed binary min-heap of particles by key()
+  std::vector<HeapEntry> heap_;              ///< indexed 4-ary min-heap of particles by key()
   std::vector<int> heap_position_;
   long predictions_ = 0, pair_checks_ = 0;
 };
