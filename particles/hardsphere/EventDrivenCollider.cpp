@@ -100,87 +100,83 @@ double EventDrivenCollider::next_crossing(int i, const Vec3& x, const Vec3& v, i
   const auto k = static_cast<std::size_t>(i);
   const Vec3& a = acceleration_;
   double best = kNever;
-  int best_face = 0;
   for (int axis = 0; axis < dimension_; ++axis) {
     const auto ax = static_cast<std::size_t>(axis);
     const int c = cell_of_[k][ax];
     // Leaving through a wall face is impossible (the wall collision comes first).
-    const bool lower_open = c > 0 || periodic_[ax];
-    const bool upper_open = c < cells_[ax] - 1 || periodic_[ax];
-    const double gap_lower = x[axis] - (lo_[axis] + c * cell_size_[ax]);
-    const double gap_upper = lo_[axis] + (c + 1) * cell_size_[ax] - x[axis];
-    double t_lower = kNever, t_upper = kNever;
-    if (accelerated_) {
-      if (lower_open) t_lower = first_descent(gap_lower, v[axis], 0.5 * a[axis], true);
-      if (upper_open) t_upper = first_descent(gap_upper, -v[axis], -0.5 * a[axis], true);
-    } else {
-      // first_descent(gap, rate, 0, true) by selects (same arithmetic): the common case, where
-      // the branches of the general root would be mispredicted about half the time.
-      const double rate = v[axis];
-      const double lower_time = gap_lower < 0.0 ? 0.0 : (rate < 0.0 ? -gap_lower / rate : kNever);
-      const double upper_time = gap_upper < 0.0 ? 0.0 : (-rate < 0.0 ? -gap_upper / -rate : kNever);
-      t_lower = lower_open ? lower_time : kNever;
-      t_upper = upper_open ? upper_time : kNever;
+    if (c > 0 || periodic_[ax]) {
+      const double lower = lo_[axis] + c * cell_size_[ax];
+      const double t = first_descent(x[axis] - lower, v[axis], 0.5 * a[axis], true);
+      if (t < best) { best = t; *face = 2 * axis; }
     }
-    best_face = t_lower < best ? 2 * axis : best_face;
-    best = t_lower < best ? t_lower : best;
-    best_face = t_upper < best ? 2 * axis + 1 : best_face;
-    best = t_upper < best ? t_upper : best;
+    if (c < cells_[ax] - 1 || periodic_[ax]) {
+      const double upper = lo_[axis] + (c + 1) * cell_size_[ax];
+      const double t = first_descent(upper - x[axis], -v[axis], -0.5 * a[axis], true);
+      if (t < best) { best = t; *face = 2 * axis + 1; }
+    }
   }
-  *face = best_face;
   return best;
 }
 
 void EventDrivenCollider::bin(int i, int cell) {
-  const auto c = static_cast<std::size_t>(cell);
-  const int slot = cell * capacity_ + occupancy_[c]++;
-  slots_[static_cast<std::size_t>(slot)] = i;
+  const int block = cell * block_;
+  const int slot = block + 1 + blocks_[static_cast<std::size_t>(block)]++;
+  blocks_[static_cast<std::size_t>(slot)] = i;
   slot_of_[static_cast<std::size_t>(i)] = slot;
 }
 
 void EventDrivenCollider::unbin(int i) {
   // The cell's last particle fills the hole, so every block stays dense.
   const int slot = slot_of_[static_cast<std::size_t>(i)];
-  const int cell = slot / capacity_;
-  const int last = cell * capacity_ + --occupancy_[static_cast<std::size_t>(cell)];
-  const int moved = slots_[static_cast<std::size_t>(last)];
-  slots_[static_cast<std::size_t>(slot)] = moved;
+  const int block = slot / block_ * block_;
+  const int last = block + blocks_[static_cast<std::size_t>(block)]--;
+  const int moved = blocks_[static_cast<std::size_t>(last)];
+  blocks_[static_cast<std::size_t>(slot)] = moved;
   slot_of_[static_cast<std::size_t>(moved)] = slot;
 }
 
 void EventDrivenCollider::grow_cells() {
-  const int old_capacity = capacity_;
-  capacity_ *= 2;
-  std::vector<int> grown(occupancy_.size() * static_cast<std::size_t>(capacity_), -1);
-  for (std::size_t c = 0; c < occupancy_.size(); ++c) {
-    for (int k = 0; k < occupancy_[c]; ++k) {
-      const int slot = static_cast<int>(c) * capacity_ + k;
-      const int i = slots_[c * static_cast<std::size_t>(old_capacity) + static_cast<std::size_t>(k)];
-      grown[static_cast<std::size_t>(slot)] = i;
-      slot_of_[static_cast<std::size_t>(i)] = slot;
+  const std::size_t n_blocks = (blocks_.size() - kSlotChunk) / static_cast<std::size_t>(block_);
+  std::vector<int> grown(n_blocks * static_cast<std::size_t>(2 * block_) + kSlotChunk, -1);
+  for (std::size_t c = 0; c < n_blocks; ++c) {
+    const int* from = blocks_.data() + c * static_cast<std::size_t>(block_);
+    int* to = grown.data() + c * static_cast<std::size_t>(2 * block_);
+    to[0] = from[0];
+    for (int k = 1; k <= from[0]; ++k) {
+      to[k] = from[k];
+      slot_of_[static_cast<std::size_t>(to[k])] = static_cast<int>(to + k - grown.data());
     }
   }
-  slots_.swap(grown);
-  candidates_.assign(27 * static_cast<std::size_t>(capacity_) + 1, -1);
+  blocks_.swap(grown);
+  block_ *= 2;
+  candidates_.assign(27 * static_cast<std::size_t>(block_) + 1, -1);
   columns_.resize(candidates_.size());
 }
 
+int EventDrivenCollider::adjacent_cells(const std::array<int, 3>& c, int* out) const {
+  const int* padded = padded_cell_.data() + padded_index(c);
+  for (int k = 0; k < stencil_size_; ++k) out[k] = padded[stencil_offset_[static_cast<std::size_t>(k)]];
+  return stencil_size_;
+}
+
+int EventDrivenCollider::padded_index(const std::array<int, 3>& c) const {
+  return ((c[2] + pad_[2]) * padded_cells_[1] + c[1] + pad_[1]) * padded_cells_[0] + c[0] + pad_[0];
+}
+
 int EventDrivenCollider::gather(const int* cells, int count) {
-  // The first chunk of each block is copied whole and the write position advanced by the
-  // occupancy: no branch per cell, except for the rare cell fuller than one chunk.
-  // candidates_ holds 27 blocks, so the copy of the last one still fits.
-  const int* slots = slots_.data();
-  const int* occupancy = occupancy_.data();
+  // The first chunk after each block's occupancy is copied whole and the write position
+  // advanced by the occupancy: no branch per cell, except for the rare cell fuller than one
+  // chunk. candidates_ holds 27 blocks, and blocks_ one spare chunk, so every copy fits.
+  const int* blocks = blocks_.data();
   int* out = candidates_.data();
-  const int capacity = capacity_;
+  const int stride = block_;
   int gathered = 0;
   for (int k = 0; k < count; ++k) {
-    const int cell = cells[k];
-    const int* block = slots + cell * capacity;
-    std::memcpy(out + gathered, block, kSlotChunk * sizeof(int));
-    const int occupied = occupancy[cell];
+    const int* block = blocks + cells[k] * stride;
+    const int occupied = block[0];
+    std::memcpy(out + gathered, block + 1, kSlotChunk * sizeof(int));
     if (occupied > kSlotChunk) {
-      std::memcpy(out + gathered + kSlotChunk, block + kSlotChunk,
+      std::memcpy(out + gathered + kSlotChunk, block + 1 + kSlotChunk,
                   static_cast<std::size_t>(occupied - kSlotChunk) * sizeof(int));
     }
     gathered += occupied;
@@ -310,16 +306,18 @@ void EventDrivenCollider::predict(const ParticleStore& store, int i, int layer) 
       }
     }
   }
-  const int* stencil = stencil_.data() + static_cast<std::ptrdiff_t>(cell_index(c)) * stencil_size_;
+  std::array<int, 27> stencil{};
+  adjacent_cells(c, stencil.data());
   if (layer < 0) {
-    scan(i, gather(stencil, stencil_size_), x, v, p);
+    scan(i, gather(stencil.data(), stencil_size_), x, v, p);
     --pair_checks_;  // i itself was among the candidates
   } else {
     // Only the layer ahead of the crossed face is new; the rest was scanned before.
     std::array<int, 9> layer_cells{};
     const auto& offsets = layer_offsets_[static_cast<std::size_t>(layer)];
     for (int m = 0; m < layer_size_; ++m) {
-      layer_cells[static_cast<std::size_t>(m)] = stencil[offsets[static_cast<std::size_t>(m)]];
+      layer_cells[static_cast<std::size_t>(m)] =
+          stencil[static_cast<std::size_t>(offsets[static_cast<std::size_t>(m)])];
     }
     scan(i, gather(layer_cells.data(), layer_size_), x, v, p);
   }
@@ -381,39 +379,44 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
     cell_size_[ax] = length_[k] / cells_[ax];
   }
   const auto n_cells = static_cast<std::size_t>(cells_[0] * cells_[1] * cells_[2]);
-  // Adjacent cells of every cell (itself included), wrapped across periodic faces, at fixed
-  // positions (dz, dy, dx from -1 to 1, dz only 0 in 2D); a missing neighbour beyond a wall is the
-  // always empty cell n_cells. Positions of each face's layer: those one step across it.
+  // Adjacent cells (itself included) at fixed positions: dz, dy, dx from -1 to 1, dz only 0 in
+  // 2D. They are read from a grid padded by one layer of cells, whose border names the cell it
+  // wraps to across periodic faces or the always empty cell n_cells beyond walls, so every cell
+  // finds its neighbours at the same index offsets. Positions of each face's layer: those one
+  // step across it.
   const int reach_z = dimension_ == 3 ? 1 : 0;
   stencil_size_ = dimension_ == 3 ? 27 : 9;
   layer_size_ = stencil_size_ / 3;
+  empty_cell_ = static_cast<int>(n_cells);
+  for (std::size_t ax = 0; ax < 3; ++ax) {
+    pad_[ax] = static_cast<int>(ax) < dimension_ ? 1 : 0;
+    padded_cells_[ax] = cells_[ax] + 2 * pad_[ax];
+  }
   std::array<int, 6> layer_fill{};
   for (int dz = -reach_z, position = 0; dz <= reach_z; ++dz)
     for (int dy = -1; dy <= 1; ++dy)
       for (int dx = -1; dx <= 1; ++dx, ++position) {
+        stencil_offset_[static_cast<std::size_t>(position)] =
+            (dz * padded_cells_[1] + dy) * padded_cells_[0] + dx;
         const std::array<int, 3> offset{dx, dy, dz};
         for (std::size_t face = 0; face < 6; ++face) {
           if (offset[face / 2] != (face % 2 == 0 ? -1 : 1)) continue;
           layer_offsets_[face][static_cast<std::size_t>(layer_fill[face]++)] = position;
         }
       }
-  stencil_.assign(n_cells * static_cast<std::size_t>(stencil_size_), static_cast<int>(n_cells));
-  for (int cz = 0; cz < cells_[2]; ++cz)
-    for (int cy = 0; cy < cells_[1]; ++cy)
-      for (int cx = 0; cx < cells_[0]; ++cx) {
-        auto entry = stencil_.begin() + static_cast<std::ptrdiff_t>(cell_index({cx, cy, cz})) * stencil_size_;
-        for (int dz = -reach_z; dz <= reach_z; ++dz)
-          for (int dy = -1; dy <= 1; ++dy)
-            for (int dx = -1; dx <= 1; ++dx, ++entry) {
-              std::array<int, 3> nb{cx + dx, cy + dy, cz + dz};
-              bool inside = true;
-              for (std::size_t ax = 0; ax < 3; ++ax) {
-                if (nb[ax] >= 0 && nb[ax] < cells_[ax]) continue;
-                if (periodic_[ax]) nb[ax] = (nb[ax] + cells_[ax]) % cells_[ax];
-                else inside = false;
-              }
-              if (inside) *entry = cell_index(nb);
-            }
+  padded_cell_.resize(static_cast<std::size_t>(padded_cells_[0] * padded_cells_[1] * padded_cells_[2]));
+  for (int pz = 0; pz < padded_cells_[2]; ++pz)
+    for (int py = 0; py < padded_cells_[1]; ++py)
+      for (int px = 0; px < padded_cells_[0]; ++px) {
+        std::array<int, 3> cell{px - pad_[0], py - pad_[1], pz - pad_[2]};
+        bool inside = true;
+        for (std::size_t ax = 0; ax < 3; ++ax) {
+          if (cell[ax] >= 0 && cell[ax] < cells_[ax]) continue;
+          if (periodic_[ax]) cell[ax] = (cell[ax] + cells_[ax]) % cells_[ax];
+          else inside = false;
+        }
+        padded_cell_[static_cast<std::size_t>((pz * padded_cells_[1] + py) * padded_cells_[0] + px)] =
+            inside ? cell_index(cell) : empty_cell_;
       }
   cell_of_.resize(n);
   slot_of_.resize(n);
@@ -438,13 +441,12 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
     }
   }
   // Blocks with room to spare over the fullest cell, so that growing mid-step is rare.
-  occupancy_.assign(n_cells + 1, 0);  // and the empty cell
-  for (std::size_t i = 0; i < n; ++i) ++occupancy_[static_cast<std::size_t>(cell_index(cell_of_[i]))];
-  const int fullest = *std::max_element(occupancy_.begin(), occupancy_.end());
-  capacity_ = kSlotChunk * ((fullest + fullest / 2 + 2 + kSlotChunk - 1) / kSlotChunk);
-  std::fill(occupancy_.begin(), occupancy_.end(), 0);
-  slots_.assign(occupancy_.size() * static_cast<std::size_t>(capacity_), -1);
-  candidates_.assign(27 * static_cast<std::size_t>(capacity_) + 1, -1);
+  std::vector<int> occupancy(n_cells + 1, 0);  // and the empty cell
+  for (std::size_t i = 0; i < n; ++i) ++occupancy[static_cast<std::size_t>(cell_index(cell_of_[i]))];
+  const int fullest = *std::max_element(occupancy.begin(), occupancy.end());
+  block_ = kSlotChunk * ((fullest + fullest / 4 + 2 + kSlotChunk - 1) / kSlotChunk);
+  blocks_.assign((n_cells + 1) * static_cast<std::size_t>(block_) + kSlotChunk, 0);
+  candidates_.assign(27 * static_cast<std::size_t>(block_) + 1, -1);
   columns_.resize(candidates_.size());
   for (std::size_t i = 0; i < n; ++i) bin(static_cast<int>(i), cell_index(cell_of_[i]));
   for (std::size_t i = 0; i < n; ++i) predict(store, static_cast<int>(i), -1);
@@ -474,7 +476,7 @@ EventStats EventDrivenCollider::advance_to(ParticleStore& store, const Domain& d
       // Snap onto the shared face (wrapped) so the new cell's exit test starts exactly at 0.
       flight_[a].position[axis] = lo_[axis] + (step > 0 ? c : c + 1) * cell_size_[ax];
       const int new_cell = cell_index(cell_of_[a]);
-      if (occupancy_[static_cast<std::size_t>(new_cell)] == capacity_) grow_cells();
+      if (blocks_[static_cast<std::size_t>(new_cell * block_)] == block_ - 1) grow_cells();
       bin(i, new_cell);
       ++stats.cell_crossings;
       const bool stale = p.partner >= 0 && counter_[static_cast<std::size_t>(p.partner)] != p.partner_count;

@@ -102,8 +102,11 @@ class EventDrivenCollider {
   /// Puts particle i into `cell` (its block must have room: grow_cells() first) or takes it out.
   void bin(int i, int cell);
   void unbin(int i);
-  /// Doubles the slots of every cell, keeping each cell's order.
+  /// Doubles every cell's block, keeping each cell's order.
   void grow_cells();
+  /// Writes the stencil_size_ cells adjacent to cell c (itself included) in stencil order.
+  int adjacent_cells(const std::array<int, 3>& c, int* out) const;
+  int padded_index(const std::array<int, 3>& c) const;
   int cell_index(const std::array<int, 3>& c) const;
   /// Time from now until particle i leaves its cell, and across which face; +inf if never.
   double next_crossing(int i, const Vec3& x, const Vec3& v, int* face) const;
@@ -129,10 +132,9 @@ class EventDrivenCollider {
   std::vector<double> burst_start_;          ///< collapse detection: start of the current burst
   std::vector<std::uint32_t> burst_count_;
   std::vector<std::array<int, 3>> cell_of_;  ///< current cell of each particle
-  int capacity_ = 8;                         ///< slots per cell, a multiple of kSlotChunk
-  std::vector<int> occupancy_;               ///< particles in each cell, and 0 in the empty one
-  std::vector<int> slots_;                   ///< cell c: slots_[c capacity_ .. + occupancy_[c])
-  std::vector<int> slot_of_;                 ///< index into slots_ of each particle
+  int block_ = 8;                            ///< ints per cell block, a multiple of kSlotChunk
+  std::vector<int> blocks_;                  ///< per cell: occupancy, then its particles; a spare chunk at the end
+  std::vector<int> slot_of_;                 ///< index into blocks_ of each particle
   std::vector<int> candidates_;              ///< scratch of gather(): 27 whole blocks and a pad
   /// Scratch of scan_candidates(): the candidates' flight states as columns, and their times.
   struct CandidateColumns {
@@ -143,7 +145,11 @@ class EventDrivenCollider {
   };
   CandidateColumns columns_;
   int stencil_size_ = 27;                    ///< adjacent cells of a cell, itself included
-  std::vector<int> stencil_;                 ///< stencil_size_ per cell (the empty cell past walls)
+  std::array<int, 3> pad_{};                 ///< layers of border cells (1 on the active axes)
+  std::array<int, 3> padded_cells_{};
+  std::vector<int> padded_cell_;             ///< padded grid -> cell (wrapped, or the empty one)
+  std::array<int, 27> stencil_offset_{};     ///< the adjacent cells' offsets in the padded grid
+  int empty_cell_ = 0;                       ///< stands in for cells beyond walls (n_cells)
   int layer_size_ = 9;                       ///< cells one step across a face
   std::array<std::array<int, 9>, 6> layer_offsets_{};  ///< their positions in a stencil, per face
   std::vector<Vec3> angular_acceleration_;
