@@ -149,7 +149,7 @@ void EventDrivenCollider::grow_cells() {
   }
   blocks_.swap(grown);
   block_ *= 2;
-  candidates_.assign(27 * static_cast<std::size_t>(block_) + 1, -1);
+  candidates_.assign(27 * static_cast<std::size_t>(block_) + kScanLanes, -1);
   columns_.resize(candidates_.size());
 }
 
@@ -184,17 +184,70 @@ int EventDrivenCollider::gather(const int* cells, int count) {
   return gathered;
 }
 
-template <bool kAccelerated>
-void EventDrivenCollider::scan_candidates(int i, int count, const Vec3& x, const Vec3& v, Pending& p) {
+// The contact-time pass is also compiled for AVX2 where the target is x86-64 and the running
+// machine has it (picked at load time): the same IEEE operations on four lanes instead of two,
+// so the results do not change (no FMA: that is a separate target feature).
+#if defined(__x86_64__) && defined(__GNUC__)
+#define GRAINWAVE_WIDE_VECTOR_CLONES [[gnu::target_clones("avx2", "default")]]
+#else
+#define GRAINWAVE_WIDE_VECTOR_CLONES
+#endif
+
+GRAINWAVE_WIDE_VECTOR_CLONES
+void EventDrivenCollider::contact_times(CandidateColumns& columns, int count, const ScanFrame& f) {
+  const double* __restrict const px = columns.x.data();
+  const double* __restrict const py = columns.y.data();
+  const double* __restrict const pz = columns.z.data();
+  const double* __restrict const wx = columns.vx.data();
+  const double* __restrict const wy = columns.vy.data();
+  const double* __restrict const wz = columns.vz.data();
+  const double* __restrict const clock = columns.clock.data();
+  const double* __restrict const radius = columns.radius.data();
+  double* __restrict const times = columns.time.data();
+  const double ax = f.acceleration[0], ay = f.acceleration[1], az = f.acceleration[2];
+  const double lx = f.length[0], ly = f.length[1], lz = f.length[2];
+  const double hx = f.half_image[0], hy = f.half_image[1], hz = f.half_image[2];
+  const double xx = f.position[0], xy = f.position[1], xz = f.position[2];
+  const double vx = f.velocity[0], vy = f.velocity[1], vz = f.velocity[2];
+  const double now = f.now;
+  const double r = f.radius;
+  for (int k = 0; k < count; ++k) {
+    const double tau = now - clock[k];
+    // Uniform acceleration cancels in the relative motion: only velocities differ. Without
+    // acceleration the added terms are zeros, which change no value (a branch would stop the
+    // vectorisation).
+    const double dx0 = px[k] + wx[k] * tau - xx + 0.5 * ax * tau * tau;
+    const double dy0 = py[k] + wy[k] * tau - xy + 0.5 * ay * tau * tau;
+    const double dz0 = pz[k] + wz[k] * tau - xz + 0.5 * az * tau * tau;
+    const double ux = wx[k] - vx + ax * tau, uy = wy[k] - vy + ay * tau, uz = wz[k] - vz + az * tau;
+    // Minimum image (Domain::separation) as masked adds; h is +inf on axes that are not periodic.
+    double dx = dx0 - (dx0 > hx ? lx : 0.0);
+    double dy = dy0 - (dy0 > hy ? ly : 0.0);
+    double dz = dz0 - (dz0 > hz ? lz : 0.0);
+    dx += dx < -hx ? lx : 0.0;
+    dy += dy < -hy ? ly : 0.0;
+    dz += dz < -hz ? lz : 0.0;
+    // ballistic_contact_time_or_never (CollisionTime.hpp), spelled out on plain doubles.
+    const double sigma = r + radius[k];
+    const double b = dx * ux + dy * uy + dz * uz;
+    const double c = dx * dx + dy * dy + dz * dz - sigma * sigma;
+    const double discriminant = b * b - (ux * ux + uy * uy + uz * uz) * c;
+    const double t = std::max(0.0, c / (std::sqrt(std::max(discriminant, 0.0)) - b));
+    times[k] = (b < 0.0 && discriminant >= 0.0) ? now + t : kNever;
+  }
+}
+
+void EventDrivenCollider::scan(int i, int count, const Vec3& x, const Vec3& v, Pending& p) {
   // Three passes: copy the candidates' flight states into contiguous columns, take all contact
   // times there (independent iterations, selects instead of branches: the compiler vectorises
   // it), then pick the earliest. Locals, not members, in the loops: stores would otherwise force
   // reloads (aliasing).
+  pair_checks_ += count;
   const Flight* flight = flight_.data();
   int* const candidates = candidates_.data();
-  // An even count keeps every candidate in the vectorised loop (none is left to a scalar
-  // remainder); the padding is i itself, which the last pass skips.
-  if (count % 2 != 0) candidates[count++] = i;
+  // A count that is a multiple of the widest vector keeps every candidate in the vectorised
+  // loop (none is left to a scalar remainder); the padding is i itself, which the last pass skips.
+  while (count % kScanLanes != 0) candidates[count++] = i;
   CandidateColumns& columns = columns_;
   double* __restrict const px = columns.x.data();
   double* __restrict const py = columns.y.data();
@@ -204,7 +257,6 @@ void EventDrivenCollider::scan_candidates(int i, int count, const Vec3& x, const
   double* __restrict const wz = columns.vz.data();
   double* __restrict const clock = columns.clock.data();
   double* __restrict const radius = columns.radius.data();
-  double* __restrict const times = columns.time.data();
   for (int k = 0; k < count; ++k) {
     const Flight& fj = flight[candidates[k]];
     px[k] = fj.position.x();
@@ -216,43 +268,19 @@ void EventDrivenCollider::scan_candidates(int i, int count, const Vec3& x, const
     clock[k] = fj.clock;
     radius[k] = fj.radius;
   }
-  const double ax = acceleration_.x(), ay = acceleration_.y(), az = acceleration_.z();
-  const double lx = length_.x(), ly = length_.y(), lz = length_.z();
-  const double hx = half_image_[0], hy = half_image_[1], hz = half_image_[2];
-  const double xx = x.x(), xy = x.y(), xz = x.z();
-  const double vx = v.x(), vy = v.y(), vz = v.z();
-  const double now = now_;
-  const double r = flight[i].radius;
-  for (int k = 0; k < count; ++k) {
-    const double tau = now - clock[k];
-    // Uniform acceleration cancels in the relative motion: only velocities differ.
-    double dx = px[k] + wx[k] * tau - xx;
-    double dy = py[k] + wy[k] * tau - xy;
-    double dz = pz[k] + wz[k] * tau - xz;
-    double ux = wx[k] - vx, uy = wy[k] - vy, uz = wz[k] - vz;
-    if constexpr (kAccelerated) {
-      dx += 0.5 * ax * tau * tau;
-      dy += 0.5 * ay * tau * tau;
-      dz += 0.5 * az * tau * tau;
-      ux += ax * tau;
-      uy += ay * tau;
-      uz += az * tau;
-    }
-    // Minimum image (Domain::separation) as masked adds; h is +inf on axes that are not periodic.
-    dx -= dx > hx ? lx : 0.0;
-    dx += dx < -hx ? lx : 0.0;
-    dy -= dy > hy ? ly : 0.0;
-    dy += dy < -hy ? ly : 0.0;
-    dz -= dz > hz ? lz : 0.0;
-    dz += dz < -hz ? lz : 0.0;
-    // ballistic_contact_time_or_never (CollisionTime.hpp), spelled out on plain doubles.
-    const double sigma = r + radius[k];
-    const double b = dx * ux + dy * uy + dz * uz;
-    const double c = dx * dx + dy * dy + dz * dz - sigma * sigma;
-    const double discriminant = b * b - (ux * ux + uy * uy + uz * uz) * c;
-    const double t = std::max(0.0, c / (std::sqrt(std::max(discriminant, 0.0)) - b));
-    times[k] = (b < 0.0 && discriminant >= 0.0) ? now + t : kNever;
+  ScanFrame frame{};
+  for (std::size_t axis = 0; axis < 3; ++axis) {
+    const auto k = static_cast<int>(axis);
+    frame.position[axis] = x[k];
+    frame.velocity[axis] = v[k];
+    frame.acceleration[axis] = acceleration_[k];
+    frame.length[axis] = length_[k];
+    frame.half_image[axis] = half_image_[axis];
   }
+  frame.now = now_;
+  frame.radius = flight[i].radius;
+  contact_times(columns, count, frame);
+  const double* times = columns.time.data();
   double best = p.collision_time;
   int partner = -1;
   for (int k = 0; k < count; ++k) {
@@ -265,12 +293,6 @@ void EventDrivenCollider::scan_candidates(int i, int count, const Vec3& x, const
     p.partner = partner;
     p.partner_count = counter_[static_cast<std::size_t>(partner)];
   }
-}
-
-void EventDrivenCollider::scan(int i, int count, const Vec3& x, const Vec3& v, Pending& p) {
-  pair_checks_ += count;  // before scan_candidates() pads it
-  if (accelerated_) scan_candidates<true>(i, count, x, v, p);
-  else scan_candidates<false>(i, count, x, v, p);
 }
 
 void EventDrivenCollider::predict(const ParticleStore& store, int i, int layer) {
@@ -446,7 +468,7 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
   const int fullest = *std::max_element(occupancy.begin(), occupancy.end());
   block_ = kSlotChunk * ((fullest + fullest / 4 + 2 + kSlotChunk - 1) / kSlotChunk);
   blocks_.assign((n_cells + 1) * static_cast<std::size_t>(block_) + kSlotChunk, 0);
-  candidates_.assign(27 * static_cast<std::size_t>(block_) + 1, -1);
+  candidates_.assign(27 * static_cast<std::size_t>(block_) + kScanLanes, -1);
   columns_.resize(candidates_.size());
   for (std::size_t i = 0; i < n; ++i) bin(static_cast<int>(i), cell_index(cell_of_[i]));
   for (std::size_t i = 0; i < n; ++i) predict(store, static_cast<int>(i), -1);

@@ -72,6 +72,7 @@ class EventDrivenCollider {
   static constexpr std::uint32_t kBurstLimit = 256;  ///< collisions of one particle a few ulps apart
   static constexpr int kHeapArity = 4;  ///< children per node of the event heap
   static constexpr int kSlotChunk = 8;  ///< gather() copies blocks in chunks of this many slots
+  static constexpr int kScanLanes = 4;  ///< scan() pads its candidates to a multiple of this
 
   /// Compact per-particle flight state (one cache line): what the pair scan reads.
   struct alignas(64) Flight {
@@ -95,10 +96,23 @@ class EventDrivenCollider {
   void predict(const ParticleStore& store, int i, int layer);
   /// Copies the particles of `cells` into candidates_ and returns how many there are.
   int gather(const int* cells, int count);
-  /// Updates p with the earliest contact of i with the first `count` candidates.
+  /// Updates p with the earliest contact of i (at x, moving with v) with the first `count`
+  /// candidates.
   void scan(int i, int count, const Vec3& x, const Vec3& v, Pending& p);
-  template <bool kAccelerated>
-  void scan_candidates(int i, int count, const Vec3& x, const Vec3& v, Pending& p);
+  /// Scratch of scan(): the candidates' flight states as columns, and their contact times.
+  struct CandidateColumns {
+    std::vector<double> x, y, z, vx, vy, vz, clock, radius, time;
+    void resize(std::size_t n) {
+      for (auto* column : {&x, &y, &z, &vx, &vy, &vz, &clock, &radius, &time}) column->resize(n);
+    }
+  };
+  /// The scanning particle and the box, as scan() hands them to contact_times().
+  struct ScanFrame {
+    std::array<double, 3> position, velocity, acceleration, length, half_image;
+    double now, radius;
+  };
+  /// columns.time[k] = absolute contact time with candidate k, or +inf if they never touch.
+  static void contact_times(CandidateColumns& columns, int count, const ScanFrame& frame);
   /// Puts particle i into `cell` (its block must have room: grow_cells() first) or takes it out.
   void bin(int i, int cell);
   void unbin(int i);
@@ -135,15 +149,8 @@ class EventDrivenCollider {
   int block_ = 8;                            ///< ints per cell block, a multiple of kSlotChunk
   std::vector<int> blocks_;                  ///< per cell: occupancy, then its particles; a spare chunk at the end
   std::vector<int> slot_of_;                 ///< index into blocks_ of each particle
-  std::vector<int> candidates_;              ///< scratch of gather(): 27 whole blocks and a pad
-  /// Scratch of scan_candidates(): the candidates' flight states as columns, and their times.
-  struct CandidateColumns {
-    std::vector<double> x, y, z, vx, vy, vz, clock, radius, time;
-    void resize(std::size_t n) {
-      for (auto* column : {&x, &y, &z, &vx, &vy, &vz, &clock, &radius, &time}) column->resize(n);
-    }
-  };
-  CandidateColumns columns_;
+  std::vector<int> candidates_;              ///< scratch of gather(): 27 whole blocks and padding
+  CandidateColumns columns_;                 ///< scratch of scan()
   int stencil_size_ = 27;                    ///< adjacent cells of a cell, itself included
   std::array<int, 3> pad_{};                 ///< layers of border cells (1 on the active axes)
   std::array<int, 3> padded_cells_{};
