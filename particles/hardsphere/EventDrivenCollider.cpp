@@ -153,9 +153,17 @@ void EventDrivenCollider::grow_cells() {
   columns_.resize(candidates_.size());
 }
 
-int EventDrivenCollider::adjacent_cells(const std::array<int, 3>& c, int* out) const {
+[[gnu::always_inline]] inline int EventDrivenCollider::adjacent_cells(const std::array<int, 3>& c,
+                                                                      std::array<int, 27>& out) const {
+  if (arithmetic_interior_ && c[0] >= 1 && c[0] <= cells_[0] - 2 && c[1] >= 1 &&
+      c[1] <= cells_[1] - 2 && (dimension_ == 2 || (c[2] >= 1 && c[2] <= cells_[2] - 2))) {
+    const int cell = cell_index(c);
+    for (std::size_t k = 0; k < 27; ++k) out[k] = cell + interior_offset_[k];
+    return stencil_size_;
+  }
+  // All 27 entries, a fixed count the compiler unrolls; in 2D the last 18 offsets are zeros.
   const int* padded = padded_cell_.data() + padded_index(c);
-  for (int k = 0; k < stencil_size_; ++k) out[k] = padded[stencil_offset_[static_cast<std::size_t>(k)]];
+  for (std::size_t k = 0; k < 27; ++k) out[k] = padded[stencil_offset_[k]];
   return stencil_size_;
 }
 
@@ -329,7 +337,7 @@ void EventDrivenCollider::predict(const ParticleStore& store, int i, int layer) 
     }
   }
   std::array<int, 27> stencil{};
-  adjacent_cells(c, stencil.data());
+  adjacent_cells(c, stencil);
   if (layer < 0) {
     scan(i, gather(stencil.data(), stencil_size_), x, v, p);
     --pair_checks_;  // i itself was among the candidates
@@ -420,6 +428,7 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
       for (int dx = -1; dx <= 1; ++dx, ++position) {
         stencil_offset_[static_cast<std::size_t>(position)] =
             (dz * padded_cells_[1] + dy) * padded_cells_[0] + dx;
+        interior_offset_[static_cast<std::size_t>(position)] = (dz * cells_[1] + dy) * cells_[0] + dx;
         const std::array<int, 3> offset{dx, dy, dz};
         for (std::size_t face = 0; face < 6; ++face) {
           if (offset[face / 2] != (face % 2 == 0 ? -1 : 1)) continue;
@@ -427,6 +436,9 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
         }
       }
   padded_cell_.resize(static_cast<std::size_t>(padded_cells_[0] * padded_cells_[1] * padded_cells_[2]));
+  // A padded grid larger than a core's share of cache costs a miss per lookup; interior cells
+  // then find their neighbours by arithmetic (a data-dependent branch, not worth it otherwise).
+  arithmetic_interior_ = padded_cell_.size() > kCachedPaddedCells;
   for (int pz = 0; pz < padded_cells_[2]; ++pz)
     for (int py = 0; py < padded_cells_[1]; ++py)
       for (int px = 0; px < padded_cells_[0]; ++px) {

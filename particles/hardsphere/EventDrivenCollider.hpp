@@ -73,6 +73,7 @@ class EventDrivenCollider {
   static constexpr int kHeapArity = 4;  ///< children per node of the event heap
   static constexpr int kSlotChunk = 8;  ///< gather() copies blocks in chunks of this many slots
   static constexpr int kScanLanes = 4;  ///< scan() pads its candidates to a multiple of this
+  static constexpr std::size_t kCachedPaddedCells = 1 << 16;  ///< 256 KiB of cell indices
 
   /// Compact per-particle flight state (one cache line): what the pair scan reads.
   struct alignas(64) Flight {
@@ -119,7 +120,7 @@ class EventDrivenCollider {
   /// Doubles every cell's block, keeping each cell's order.
   void grow_cells();
   /// Writes the stencil_size_ cells adjacent to cell c (itself included) in stencil order.
-  int adjacent_cells(const std::array<int, 3>& c, int* out) const;
+  int adjacent_cells(const std::array<int, 3>& c, std::array<int, 27>& out) const;
   int padded_index(const std::array<int, 3>& c) const;
   int cell_index(const std::array<int, 3>& c) const;
   /// Time from now until particle i leaves its cell, and across which face; +inf if never.
@@ -156,6 +157,8 @@ class EventDrivenCollider {
   std::array<int, 3> padded_cells_{};
   std::vector<int> padded_cell_;             ///< padded grid -> cell (wrapped, or the empty one)
   std::array<int, 27> stencil_offset_{};     ///< the adjacent cells' offsets in the padded grid
+  std::array<int, 27> interior_offset_{};    ///< and in the grid itself, from an interior cell
+  bool arithmetic_interior_ = false;         ///< whether interior cells use interior_offset_
   int empty_cell_ = 0;                       ///< stands in for cells beyond walls (n_cells)
   int layer_size_ = 9;                       ///< cells one step across a face
   std::array<std::array<int, 9>, 6> layer_offsets_{};  ///< their positions in a stencil, per face
