@@ -54,8 +54,8 @@ double EventDrivenCollider::key(int i) const {
 }
 
 void EventDrivenCollider::heap_update(int i) {
-  // A 4-ary heap: half the levels of a binary one, and the four children of a slot share a
-  // cache line (HeapEntry is 16 bytes), so a sift costs fewer dependent loads. The earliest child
+  // A 4-ary heap: half the levels of a binary one, and the four children of a slot are 64
+  // contiguous bytes (HeapEntry is 16), so a sift costs fewer dependent loads. The earliest child
   // is found by a branch-free tournament; entries past the end are +inf sentinels.
   HeapEntry* heap = heap_.data();
   int* position = heap_position_.data();

@@ -15,13 +15,16 @@
 // of 9 after a crossing); a candidate whose partner has collided since is stale and triggers a
 // full rescan of that particle when its time comes. Impulses: CollisionImpulse.hpp.
 //
-// Speed (the scan is most of the work): each cell owns a fixed block of slots holding its
-// particles' indices, so a scan first gathers the candidates of all its cells by copying whole
-// blocks and advancing by the occupancy (no branch per cell, no list chasing), then runs the
-// contact-time kernel over the gathered indices without data-dependent branches (minimum image
-// and "never" by selects), in the spirit of the cell-major layouts of Donev, Torquato &
-// Stillinger, J. Comput. Phys. 202 (2005) 737. A cell that overflows its block doubles every
-// block (rare: the capacity starts above the largest occupancy seen when binning).
+// Speed (the pair scan is most of the work; bench/bench_hardsphere.cpp measures it): each cell
+// owns a fixed block of ints, its occupancy followed by its particles' indices. A scan lists the
+// adjacent cells (from a grid padded with one layer of wrapped or empty cells, or, for interior
+// cells of large grids, by index arithmetic), gathers their particles by copying whole blocks and
+// advancing by the occupancy (no branch per cell, no list chasing), copies the candidates' flight
+// states into columns and takes all contact times in one loop without data-dependent branches
+// (minimum image and "never" by selects) that the compiler vectorises, for AVX2 too where the
+// machine has it. The arithmetic is that of ballistic_contact_time_or_never, so none of this
+// changes a result. A cell that overflows its block doubles every block (rare: blocks start with
+// room above the fullest cell at binning).
 #include <array>
 #include <cstdint>
 #include <vector>
