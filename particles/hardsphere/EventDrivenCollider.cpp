@@ -99,6 +99,12 @@ void EventDrivenCollider::sync(ParticleStore& store, int i, double t) {
 double EventDrivenCollider::next_crossing(int i, const Vec3& x, const Vec3& v, int* face) const {
   const auto k = static_cast<std::size_t>(i);
   const Vec3& a = acceleration_;
+  // first_descent(gap, rate, 0, true) written out for the common unaccelerated case.
+  const auto exit_time = [this](double gap, double rate, double half_acceleration) {
+    if (accelerated_) return first_descent(gap, rate, half_acceleration, true);
+    if (gap < 0.0) return 0.0;
+    return rate < 0.0 ? -gap / rate : kNever;
+  };
   double best = kNever;
   for (int axis = 0; axis < dimension_; ++axis) {
     const auto ax = static_cast<std::size_t>(axis);
@@ -106,12 +112,12 @@ double EventDrivenCollider::next_crossing(int i, const Vec3& x, const Vec3& v, i
     // Leaving through a wall face is impossible (the wall collision comes first).
     if (c > 0 || periodic_[ax]) {
       const double lower = lo_[axis] + c * cell_size_[ax];
-      const double t = first_descent(x[axis] - lower, v[axis], 0.5 * a[axis], true);
+      const double t = exit_time(x[axis] - lower, v[axis], 0.5 * a[axis]);
       if (t < best) { best = t; *face = 2 * axis; }
     }
     if (c < cells_[ax] - 1 || periodic_[ax]) {
       const double upper = lo_[axis] + (c + 1) * cell_size_[ax];
-      const double t = first_descent(upper - x[axis], -v[axis], -0.5 * a[axis], true);
+      const double t = exit_time(upper - x[axis], -v[axis], -0.5 * a[axis]);
       if (t < best) { best = t; *face = 2 * axis + 1; }
     }
   }
