@@ -159,8 +159,8 @@ void EventDrivenCollider::grow_cells() {
   columns_.resize(candidates_.size());
 }
 
-[[gnu::always_inline]] inline int EventDrivenCollider::adjacent_cells(const std::array<int, 3>& c,
-                                                                      std::array<int, 27>& out) const {
+[[gnu::always_inline]] inline int EventDrivenCollider::adjacent_cells(
+    const std::array<int, 3>& c, std::array<int, 27>& out) const {
   if (arithmetic_interior_ && c[0] >= 1 && c[0] <= cells_[0] - 2 && c[1] >= 1 &&
       c[1] <= cells_[1] - 2 && (dimension_ == 2 || (c[2] >= 1 && c[2] <= cells_[2] - 2))) {
     const int cell = cell_index(c);
@@ -434,14 +434,16 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
       for (int dx = -1; dx <= 1; ++dx, ++position) {
         stencil_offset_[static_cast<std::size_t>(position)] =
             (dz * padded_cells_[1] + dy) * padded_cells_[0] + dx;
-        interior_offset_[static_cast<std::size_t>(position)] = (dz * cells_[1] + dy) * cells_[0] + dx;
+        interior_offset_[static_cast<std::size_t>(position)] =
+            (dz * cells_[1] + dy) * cells_[0] + dx;
         const std::array<int, 3> offset{dx, dy, dz};
         for (std::size_t face = 0; face < 6; ++face) {
           if (offset[face / 2] != (face % 2 == 0 ? -1 : 1)) continue;
           layer_offsets_[face][static_cast<std::size_t>(layer_fill[face]++)] = position;
         }
       }
-  padded_cell_.resize(static_cast<std::size_t>(padded_cells_[0] * padded_cells_[1] * padded_cells_[2]));
+  padded_cell_.resize(
+      static_cast<std::size_t>(padded_cells_[0] * padded_cells_[1] * padded_cells_[2]));
   // A padded grid larger than a core's share of cache costs a miss per lookup; interior cells
   // then find their neighbours by arithmetic (a data-dependent branch, not worth it otherwise).
   arithmetic_interior_ = padded_cell_.size() > kCachedPaddedCells;
@@ -455,8 +457,8 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
           if (periodic_[ax]) cell[ax] = (cell[ax] + cells_[ax]) % cells_[ax];
           else inside = false;
         }
-        padded_cell_[static_cast<std::size_t>((pz * padded_cells_[1] + py) * padded_cells_[0] + px)] =
-            inside ? cell_index(cell) : empty_cell_;
+        const int padded = (pz * padded_cells_[1] + py) * padded_cells_[0] + px;
+        padded_cell_[static_cast<std::size_t>(padded)] = inside ? cell_index(cell) : empty_cell_;
       }
   cell_of_.resize(n);
   slot_of_.resize(n);
@@ -482,7 +484,9 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
   }
   // Blocks with room to spare over the fullest cell, so that growing mid-step is rare.
   std::vector<int> occupancy(n_cells + 1, 0);  // and the empty cell
-  for (std::size_t i = 0; i < n; ++i) ++occupancy[static_cast<std::size_t>(cell_index(cell_of_[i]))];
+  for (std::size_t i = 0; i < n; ++i) {
+    ++occupancy[static_cast<std::size_t>(cell_index(cell_of_[i]))];
+  }
   const int fullest = *std::max_element(occupancy.begin(), occupancy.end());
   block_ = kSlotChunk * ((fullest + fullest / 4 + 2 + kSlotChunk - 1) / kSlotChunk);
   blocks_.assign((n_cells + 1) * static_cast<std::size_t>(block_) + kSlotChunk, 0);

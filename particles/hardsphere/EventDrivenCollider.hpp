@@ -151,7 +151,7 @@ class EventDrivenCollider {
   std::vector<std::uint32_t> burst_count_;
   std::vector<std::array<int, 3>> cell_of_;  ///< current cell of each particle
   int block_ = 8;                            ///< ints per cell block, a multiple of kSlotChunk
-  std::vector<int> blocks_;                  ///< per cell: occupancy, then its particles; a spare chunk at the end
+  std::vector<int> blocks_;                  ///< per cell: occupancy, then particles; spare chunk
   std::vector<int> slot_of_;                 ///< index into blocks_ of each particle
   std::vector<int> candidates_;              ///< scratch of gather(): 27 whole blocks and padding
   CandidateColumns columns_;                 ///< scratch of scan()
