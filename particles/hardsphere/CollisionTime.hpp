@@ -144,8 +144,9 @@ inline std::optional<double> ballistic_contact_time(const Eigen::Vector3d& d,
 }
 
 /// The same root as ballistic_contact_time, +infinity when there is none, computed without
-/// data-dependent branches (the event-driven pair scan: about half the candidates recede, and
-/// mispredicted branches cost more than the always-taken square root).
+/// data-dependent branches (about half the candidates of a pair scan recede, and mispredicted
+/// branches cost more than the always-taken square root). EventDrivenCollider::contact_times
+/// spells this formula out on plain doubles so that the compiler vectorises it.
 inline double ballistic_contact_time_or_never(const Eigen::Vector3d& d, const Eigen::Vector3d& u,
                                               double sigma) {
   const double b = d.dot(u);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -53,28 +54,34 @@ double EventDrivenCollider::key(int i) const {
 }
 
 void EventDrivenCollider::heap_update(int i) {
-  auto place = [&](int slot, const HeapEntry& entry) {
-    heap_[static_cast<std::size_t>(slot)] = entry;
-    heap_position_[static_cast<std::size_t>(entry.particle)] = slot;
-  };
+  // A 4-ary heap: half the levels of a binary one, and the four children of a slot are 64
+  // contiguous bytes (HeapEntry is 16), so a sift costs fewer dependent loads. The earliest child
+  // is found by a branch-free tournament; entries past the end are +inf sentinels.
+  HeapEntry* heap = heap_.data();
+  int* position = heap_position_.data();
+  const int n = static_cast<int>(heap_.size()) - (kHeapArity - 1);
   const HeapEntry entry{key(i), i};
-  int slot = heap_position_[static_cast<std::size_t>(i)];
+  int slot = position[i];
   while (slot > 0) {  // sift up
-    const int parent = (slot - 1) / 2;
-    if (!(heap_[static_cast<std::size_t>(parent)].time > entry.time)) break;
-    place(slot, heap_[static_cast<std::size_t>(parent)]);
+    const int parent = (slot - 1) / kHeapArity;
+    if (!(heap[parent].time > entry.time)) break;
+    heap[slot] = heap[parent];
+    position[heap[slot].particle] = slot;
     slot = parent;
   }
-  const int n = static_cast<int>(heap_.size());
   while (true) {  // sift down
-    int child = 2 * slot + 1;
-    if (child >= n) break;
-    if (child + 1 < n && heap_[static_cast<std::size_t>(child + 1)].time < heap_[static_cast<std::size_t>(child)].time) ++child;
-    if (!(heap_[static_cast<std::size_t>(child)].time < entry.time)) break;
-    place(slot, heap_[static_cast<std::size_t>(child)]);
+    const int first = kHeapArity * slot + 1;
+    if (first >= n) break;
+    const int left = first + static_cast<int>(heap[first + 1].time < heap[first].time);
+    const int right = first + 2 + static_cast<int>(heap[first + 3].time < heap[first + 2].time);
+    const int child = heap[right].time < heap[left].time ? right : left;
+    if (!(heap[child].time < entry.time)) break;
+    heap[slot] = heap[child];
+    position[heap[slot].particle] = slot;
     slot = child;
   }
-  place(slot, entry);
+  heap[slot] = entry;
+  position[i] = slot;
 }
 
 void EventDrivenCollider::sync(ParticleStore& store, int i, double t) {
@@ -92,6 +99,12 @@ void EventDrivenCollider::sync(ParticleStore& store, int i, double t) {
 double EventDrivenCollider::next_crossing(int i, const Vec3& x, const Vec3& v, int* face) const {
   const auto k = static_cast<std::size_t>(i);
   const Vec3& a = acceleration_;
+  // first_descent(gap, rate, 0, true) written out for the common unaccelerated case.
+  const auto exit_time = [this](double gap, double rate, double half_acceleration) {
+    if (accelerated_) return first_descent(gap, rate, half_acceleration, true);
+    if (gap < 0.0) return 0.0;
+    return rate < 0.0 ? -gap / rate : kNever;
+  };
   double best = kNever;
   for (int axis = 0; axis < dimension_; ++axis) {
     const auto ax = static_cast<std::size_t>(axis);
@@ -99,64 +112,201 @@ double EventDrivenCollider::next_crossing(int i, const Vec3& x, const Vec3& v, i
     // Leaving through a wall face is impossible (the wall collision comes first).
     if (c > 0 || periodic_[ax]) {
       const double lower = lo_[axis] + c * cell_size_[ax];
-      const double t = first_descent(x[axis] - lower, v[axis], 0.5 * a[axis], true);
+      const double t = exit_time(x[axis] - lower, v[axis], 0.5 * a[axis]);
       if (t < best) { best = t; *face = 2 * axis; }
     }
     if (c < cells_[ax] - 1 || periodic_[ax]) {
       const double upper = lo_[axis] + (c + 1) * cell_size_[ax];
-      const double t = first_descent(upper - x[axis], -v[axis], -0.5 * a[axis], true);
+      const double t = exit_time(upper - x[axis], -v[axis], -0.5 * a[axis]);
       if (t < best) { best = t; *face = 2 * axis + 1; }
     }
   }
   return best;
 }
 
-template <bool kAccelerated>
-void EventDrivenCollider::scan_cell(int i, int cell, const Vec3& x, const Vec3& v, Pending& p) {
-  // Locals, not members, in the loop: stores to p would otherwise force reloads (aliasing).
-  const Vec3 a = acceleration_;
-  const double now = now_;
-  const double r = flight_[static_cast<std::size_t>(i)].radius;
-  const Flight* flight = flight_.data();
-  const int* next = next_.data();
-  double best = p.collision_time;
-  int partner = -1;
-  long checks = 0;
-  for (int j = head_[static_cast<std::size_t>(cell)]; j >= 0; j = next[j]) {
-    if (j == i) continue;
-    ++checks;
-    const Flight& fj = flight[j];
-    const double tau = now - fj.clock;
-    // Uniform acceleration cancels in the relative motion: only velocities differ.
-    Vec3 d = fj.position + fj.velocity * tau - x;
-    Vec3 u = fj.velocity - v;
-    if constexpr (kAccelerated) {
-      d += 0.5 * a * tau * tau;
-      u += a * tau;
-    }
-    for (int axis = 0; axis < dimension_; ++axis) {  // minimum image (Domain::separation)
-      if (!periodic_[static_cast<std::size_t>(axis)]) continue;
-      const double length = length_[axis];
-      if (d[axis] > 0.5 * length) d[axis] -= length;
-      else if (d[axis] < -0.5 * length) d[axis] += length;
-    }
-    const double when = now + ballistic_contact_time_or_never(d, u, r + fj.radius);
-    if (when < best) {
-      best = when;
-      partner = j;
+void EventDrivenCollider::bin(int i, int cell) {
+  const int block = cell * block_;
+  const int slot = block + 1 + blocks_[static_cast<std::size_t>(block)]++;
+  blocks_[static_cast<std::size_t>(slot)] = i;
+  slot_of_[static_cast<std::size_t>(i)] = slot;
+}
+
+void EventDrivenCollider::unbin(int i) {
+  // The cell's last particle fills the hole, so every block stays dense.
+  const int slot = slot_of_[static_cast<std::size_t>(i)];
+  const int block = slot / block_ * block_;
+  const int last = block + blocks_[static_cast<std::size_t>(block)]--;
+  const int moved = blocks_[static_cast<std::size_t>(last)];
+  blocks_[static_cast<std::size_t>(slot)] = moved;
+  slot_of_[static_cast<std::size_t>(moved)] = slot;
+}
+
+void EventDrivenCollider::grow_cells() {
+  const std::size_t n_blocks = (blocks_.size() - kSlotChunk) / static_cast<std::size_t>(block_);
+  std::vector<int> grown(n_blocks * static_cast<std::size_t>(2 * block_) + kSlotChunk, -1);
+  for (std::size_t c = 0; c < n_blocks; ++c) {
+    const int* from = blocks_.data() + c * static_cast<std::size_t>(block_);
+    int* to = grown.data() + c * static_cast<std::size_t>(2 * block_);
+    to[0] = from[0];
+    for (int k = 1; k <= from[0]; ++k) {
+      to[k] = from[k];
+      slot_of_[static_cast<std::size_t>(to[k])] = static_cast<int>(to + k - grown.data());
     }
   }
-  pair_checks_ += checks;
+  blocks_.swap(grown);
+  block_ *= 2;
+  candidates_.assign(27 * static_cast<std::size_t>(block_) + kScanLanes, -1);
+  columns_.resize(candidates_.size());
+}
+
+[[gnu::always_inline]] inline int EventDrivenCollider::adjacent_cells(
+    const std::array<int, 3>& c, std::array<int, 27>& out) const {
+  if (arithmetic_interior_ && c[0] >= 1 && c[0] <= cells_[0] - 2 && c[1] >= 1 &&
+      c[1] <= cells_[1] - 2 && (dimension_ == 2 || (c[2] >= 1 && c[2] <= cells_[2] - 2))) {
+    const int cell = cell_index(c);
+    for (std::size_t k = 0; k < 27; ++k) out[k] = cell + interior_offset_[k];
+    return stencil_size_;
+  }
+  // All 27 entries, a fixed count the compiler unrolls; in 2D the last 18 offsets are zeros.
+  const int* padded = padded_cell_.data() + padded_index(c);
+  for (std::size_t k = 0; k < 27; ++k) out[k] = padded[stencil_offset_[k]];
+  return stencil_size_;
+}
+
+int EventDrivenCollider::padded_index(const std::array<int, 3>& c) const {
+  return ((c[2] + pad_[2]) * padded_cells_[1] + c[1] + pad_[1]) * padded_cells_[0] + c[0] + pad_[0];
+}
+
+int EventDrivenCollider::gather(const int* cells, int count) {
+  // The first chunk after each block's occupancy is copied whole and the write position
+  // advanced by the occupancy: no branch per cell, except for the rare cell fuller than one
+  // chunk. candidates_ holds 27 blocks, and blocks_ one spare chunk, so every copy fits.
+  const int* blocks = blocks_.data();
+  int* out = candidates_.data();
+  const int stride = block_;
+  int gathered = 0;
+  for (int k = 0; k < count; ++k) {
+    const int* block = blocks + cells[k] * stride;
+    const int occupied = block[0];
+    std::memcpy(out + gathered, block + 1, kSlotChunk * sizeof(int));
+    if (occupied > kSlotChunk) {
+      std::memcpy(out + gathered + kSlotChunk, block + 1 + kSlotChunk,
+                  static_cast<std::size_t>(occupied - kSlotChunk) * sizeof(int));
+    }
+    gathered += occupied;
+  }
+  return gathered;
+}
+
+// The contact-time pass is also compiled for AVX2 where the target is x86-64 and the running
+// machine has it (picked at load time): the same IEEE operations on four lanes instead of two,
+// so the results do not change (no FMA: that is a separate target feature).
+#if defined(__x86_64__) && defined(__GNUC__)
+#define GRAINWAVE_WIDE_VECTOR_CLONES [[gnu::target_clones("avx2", "default")]]
+#else
+#define GRAINWAVE_WIDE_VECTOR_CLONES
+#endif
+
+GRAINWAVE_WIDE_VECTOR_CLONES
+void EventDrivenCollider::contact_times(CandidateColumns& columns, int count, const ScanFrame& f) {
+  const double* __restrict const px = columns.x.data();
+  const double* __restrict const py = columns.y.data();
+  const double* __restrict const pz = columns.z.data();
+  const double* __restrict const wx = columns.vx.data();
+  const double* __restrict const wy = columns.vy.data();
+  const double* __restrict const wz = columns.vz.data();
+  const double* __restrict const clock = columns.clock.data();
+  const double* __restrict const radius = columns.radius.data();
+  double* __restrict const times = columns.time.data();
+  const double ax = f.acceleration[0], ay = f.acceleration[1], az = f.acceleration[2];
+  const double lx = f.length[0], ly = f.length[1], lz = f.length[2];
+  const double hx = f.half_image[0], hy = f.half_image[1], hz = f.half_image[2];
+  const double xx = f.position[0], xy = f.position[1], xz = f.position[2];
+  const double vx = f.velocity[0], vy = f.velocity[1], vz = f.velocity[2];
+  const double now = f.now;
+  const double r = f.radius;
+  for (int k = 0; k < count; ++k) {
+    const double tau = now - clock[k];
+    // Uniform acceleration cancels in the relative motion: only velocities differ. Without
+    // acceleration the added terms are zeros, which change no value (a branch would stop the
+    // vectorisation).
+    const double dx0 = px[k] + wx[k] * tau - xx + 0.5 * ax * tau * tau;
+    const double dy0 = py[k] + wy[k] * tau - xy + 0.5 * ay * tau * tau;
+    const double dz0 = pz[k] + wz[k] * tau - xz + 0.5 * az * tau * tau;
+    const double ux = wx[k] - vx + ax * tau, uy = wy[k] - vy + ay * tau, uz = wz[k] - vz + az * tau;
+    // Minimum image (Domain::separation) as masked adds; h is +inf on axes that are not periodic.
+    double dx = dx0 - (dx0 > hx ? lx : 0.0);
+    double dy = dy0 - (dy0 > hy ? ly : 0.0);
+    double dz = dz0 - (dz0 > hz ? lz : 0.0);
+    dx += dx < -hx ? lx : 0.0;
+    dy += dy < -hy ? ly : 0.0;
+    dz += dz < -hz ? lz : 0.0;
+    // ballistic_contact_time_or_never (CollisionTime.hpp), spelled out on plain doubles.
+    const double sigma = r + radius[k];
+    const double b = dx * ux + dy * uy + dz * uz;
+    const double c = dx * dx + dy * dy + dz * dz - sigma * sigma;
+    const double discriminant = b * b - (ux * ux + uy * uy + uz * uz) * c;
+    const double t = std::max(0.0, c / (std::sqrt(std::max(discriminant, 0.0)) - b));
+    times[k] = (b < 0.0 && discriminant >= 0.0) ? now + t : kNever;
+  }
+}
+
+void EventDrivenCollider::scan(int i, int count, const Vec3& x, const Vec3& v, Pending& p) {
+  // Three passes: copy the candidates' flight states into contiguous columns, take all contact
+  // times there (independent iterations, selects instead of branches: the compiler vectorises
+  // it), then pick the earliest. Locals, not members, in the loops: stores would otherwise force
+  // reloads (aliasing).
+  pair_checks_ += count;
+  const Flight* flight = flight_.data();
+  int* const candidates = candidates_.data();
+  // A count that is a multiple of the widest vector keeps every candidate in the vectorised
+  // loop (none is left to a scalar remainder); the padding is i itself, which the last pass skips.
+  while (count % kScanLanes != 0) candidates[count++] = i;
+  CandidateColumns& columns = columns_;
+  double* __restrict const px = columns.x.data();
+  double* __restrict const py = columns.y.data();
+  double* __restrict const pz = columns.z.data();
+  double* __restrict const wx = columns.vx.data();
+  double* __restrict const wy = columns.vy.data();
+  double* __restrict const wz = columns.vz.data();
+  double* __restrict const clock = columns.clock.data();
+  double* __restrict const radius = columns.radius.data();
+  for (int k = 0; k < count; ++k) {
+    const Flight& fj = flight[candidates[k]];
+    px[k] = fj.position.x();
+    py[k] = fj.position.y();
+    pz[k] = fj.position.z();
+    wx[k] = fj.velocity.x();
+    wy[k] = fj.velocity.y();
+    wz[k] = fj.velocity.z();
+    clock[k] = fj.clock;
+    radius[k] = fj.radius;
+  }
+  ScanFrame frame{};
+  for (std::size_t axis = 0; axis < 3; ++axis) {
+    const auto k = static_cast<int>(axis);
+    frame.position[axis] = x[k];
+    frame.velocity[axis] = v[k];
+    frame.acceleration[axis] = acceleration_[k];
+    frame.length[axis] = length_[k];
+    frame.half_image[axis] = half_image_[axis];
+  }
+  frame.now = now_;
+  frame.radius = flight[i].radius;
+  contact_times(columns, count, frame);
+  const double* times = columns.time.data();
+  double best = p.collision_time;
+  int partner = -1;
+  for (int k = 0; k < count; ++k) {
+    const bool earlier = times[k] < best && candidates[k] != i;
+    best = earlier ? times[k] : best;
+    partner = earlier ? candidates[k] : partner;
+  }
   if (partner >= 0) {
     p.collision_time = best;
     p.partner = partner;
     p.partner_count = counter_[static_cast<std::size_t>(partner)];
   }
-}
-
-void EventDrivenCollider::scan(int i, int cell, const Vec3& x, const Vec3& v, Pending& p) {
-  if (accelerated_) scan_cell<true>(i, cell, x, v, p);
-  else scan_cell<false>(i, cell, x, v, p);
 }
 
 void EventDrivenCollider::predict(const ParticleStore& store, int i, int layer) {
@@ -192,32 +342,20 @@ void EventDrivenCollider::predict(const ParticleStore& store, int i, int layer) 
       }
     }
   }
-  const auto cell = static_cast<std::size_t>(cell_index(c));
+  std::array<int, 27> stencil{};
+  adjacent_cells(c, stencil);
   if (layer < 0) {
-    for (int s = stencil_start_[cell]; s < stencil_start_[cell + 1]; ++s) {
-      scan(i, stencil_[static_cast<std::size_t>(s)], x, v, p);
-    }
+    scan(i, gather(stencil.data(), stencil_size_), x, v, p);
+    --pair_checks_;  // i itself was among the candidates
   } else {
     // Only the layer ahead of the crossed face is new; the rest was scanned before.
-    const int along = layer / 2;
-    const int ahead = layer % 2 == 0 ? -1 : 1;
-    const int reach_z = dimension_ == 3 ? 1 : 0;
-    for (int dz = -reach_z; dz <= reach_z; ++dz) {
-      for (int dy = -1; dy <= 1; ++dy) {
-        for (int dx = -1; dx <= 1; ++dx) {
-          std::array<int, 3> offset{dx, dy, dz};
-          if (offset[static_cast<std::size_t>(along)] != ahead) continue;
-          std::array<int, 3> nb{c[0] + dx, c[1] + dy, c[2] + dz};
-          bool inside = true;
-          for (std::size_t ax = 0; ax < 3; ++ax) {
-            if (nb[ax] >= 0 && nb[ax] < cells_[ax]) continue;
-            if (periodic_[ax]) nb[ax] = (nb[ax] + cells_[ax]) % cells_[ax];
-            else inside = false;
-          }
-          if (inside) scan(i, cell_index(nb), x, v, p);
-        }
-      }
+    std::array<int, 9> layer_cells{};
+    const auto& offsets = layer_offsets_[static_cast<std::size_t>(layer)];
+    for (int m = 0; m < layer_size_; ++m) {
+      layer_cells[static_cast<std::size_t>(m)] =
+          stencil[static_cast<std::size_t>(offsets[static_cast<std::size_t>(m)])];
     }
+    scan(i, gather(layer_cells.data(), layer_size_), x, v, p);
   }
   if (fixed && p.partner >= 0 && store.is_fixed(static_cast<std::size_t>(p.partner))) {
     p.collision_time = kNever;  // two immovable particles never collide (fixed ones are at rest)
@@ -254,6 +392,7 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
   for (int k = 0; k < 3; ++k) {
     const auto ax = static_cast<std::size_t>(k);
     wall_[ax] = {false, false};
+    half_image_[ax] = kNever;
     if (k >= dimension_) {
       cells_[ax] = 1;
       cell_size_[ax] = 1.0;
@@ -267,6 +406,7 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
       wall_[ax][side] = domain.face[ax][side] == FaceKind::kWall;
     }
     periodic_[ax] = domain.periodic(k);
+    if (periodic_[ax]) half_image_[ax] = 0.5 * length_[k];
     cells_[ax] = std::max(1, static_cast<int>(std::floor(length_[k] / (2.0 * max_radius))));
     if (periodic_[ax] && cells_[ax] < 3) {
       throw std::invalid_argument("EventDrivenCollider: periodic axis " + std::to_string(k) +
@@ -275,39 +415,60 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
     cell_size_[ax] = length_[k] / cells_[ax];
   }
   const auto n_cells = static_cast<std::size_t>(cells_[0] * cells_[1] * cells_[2]);
-  // Adjacent cells of every cell (itself included), wrapped across periodic faces.
-  stencil_start_.assign(n_cells + 1, 0);
-  stencil_.clear();
+  // Adjacent cells (itself included) at fixed positions: dz, dy, dx from -1 to 1, dz only 0 in
+  // 2D. They are read from a grid padded by one layer of cells, whose border names the cell it
+  // wraps to across periodic faces or the always empty cell n_cells beyond walls, so every cell
+  // finds its neighbours at the same index offsets. Positions of each face's layer: those one
+  // step across it.
   const int reach_z = dimension_ == 3 ? 1 : 0;
-  for (int cz = 0; cz < cells_[2]; ++cz)
-    for (int cy = 0; cy < cells_[1]; ++cy)
-      for (int cx = 0; cx < cells_[0]; ++cx) {
-        for (int dz = -reach_z; dz <= reach_z; ++dz)
-          for (int dy = -1; dy <= 1; ++dy)
-            for (int dx = -1; dx <= 1; ++dx) {
-              std::array<int, 3> nb{cx + dx, cy + dy, cz + dz};
-              bool inside = true;
-              for (std::size_t ax = 0; ax < 3; ++ax) {
-                if (nb[ax] >= 0 && nb[ax] < cells_[ax]) continue;
-                if (periodic_[ax]) nb[ax] = (nb[ax] + cells_[ax]) % cells_[ax];
-                else inside = false;
-              }
-              if (inside) stencil_.push_back(cell_index(nb));
-            }
-        stencil_start_[static_cast<std::size_t>(cell_index({cx, cy, cz})) + 1] =
-            static_cast<int>(stencil_.size());
+  stencil_size_ = dimension_ == 3 ? 27 : 9;
+  layer_size_ = stencil_size_ / 3;
+  empty_cell_ = static_cast<int>(n_cells);
+  for (std::size_t ax = 0; ax < 3; ++ax) {
+    pad_[ax] = static_cast<int>(ax) < dimension_ ? 1 : 0;
+    padded_cells_[ax] = cells_[ax] + 2 * pad_[ax];
+  }
+  std::array<int, 6> layer_fill{};
+  for (int dz = -reach_z, position = 0; dz <= reach_z; ++dz)
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx, ++position) {
+        stencil_offset_[static_cast<std::size_t>(position)] =
+            (dz * padded_cells_[1] + dy) * padded_cells_[0] + dx;
+        interior_offset_[static_cast<std::size_t>(position)] =
+            (dz * cells_[1] + dy) * cells_[0] + dx;
+        const std::array<int, 3> offset{dx, dy, dz};
+        for (std::size_t face = 0; face < 6; ++face) {
+          if (offset[face / 2] != (face % 2 == 0 ? -1 : 1)) continue;
+          layer_offsets_[face][static_cast<std::size_t>(layer_fill[face]++)] = position;
+        }
       }
-  head_.assign(n_cells, -1);
-  next_.assign(n, -1);
-  prev_.assign(n, -1);
+  padded_cell_.resize(
+      static_cast<std::size_t>(padded_cells_[0] * padded_cells_[1] * padded_cells_[2]));
+  // A padded grid larger than a core's share of cache costs a miss per lookup; interior cells
+  // then find their neighbours by arithmetic (a data-dependent branch, not worth it otherwise).
+  arithmetic_interior_ = padded_cell_.size() > kCachedPaddedCells;
+  for (int pz = 0; pz < padded_cells_[2]; ++pz)
+    for (int py = 0; py < padded_cells_[1]; ++py)
+      for (int px = 0; px < padded_cells_[0]; ++px) {
+        std::array<int, 3> cell{px - pad_[0], py - pad_[1], pz - pad_[2]};
+        bool inside = true;
+        for (std::size_t ax = 0; ax < 3; ++ax) {
+          if (cell[ax] >= 0 && cell[ax] < cells_[ax]) continue;
+          if (periodic_[ax]) cell[ax] = (cell[ax] + cells_[ax]) % cells_[ax];
+          else inside = false;
+        }
+        const int padded = (pz * padded_cells_[1] + py) * padded_cells_[0] + px;
+        padded_cell_[static_cast<std::size_t>(padded)] = inside ? cell_index(cell) : empty_cell_;
+      }
   cell_of_.resize(n);
+  slot_of_.resize(n);
   flight_.resize(n);
   counter_.assign(n, 0u);
   burst_start_.assign(n, -kNever);
   burst_count_.assign(n, 0u);
   pending_.assign(n, Pending{kNever, kNever, kNoPartner, 0u, 0});
   angular_acceleration_.resize(n);
-  heap_.resize(n);
+  heap_.assign(n + kHeapArity - 1, HeapEntry{kNever, -1});  // sentinels: see heap_update()
   heap_position_.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
     heap_[i] = HeapEntry{kNever, static_cast<int>(i)};
@@ -320,11 +481,18 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
       const double s = (flight_[i].position[k] - lo_[k]) / cell_size_[ax];
       cell_of_[i][ax] = k >= dimension_ ? 0 : std::clamp(static_cast<int>(std::floor(s)), 0, cells_[ax] - 1);
     }
-    const auto cell = static_cast<std::size_t>(cell_index(cell_of_[i]));
-    next_[i] = head_[cell];
-    if (head_[cell] >= 0) prev_[static_cast<std::size_t>(head_[cell])] = static_cast<int>(i);
-    head_[cell] = static_cast<int>(i);
   }
+  // Blocks with room to spare over the fullest cell, so that growing mid-step is rare.
+  std::vector<int> occupancy(n_cells + 1, 0);  // and the empty cell
+  for (std::size_t i = 0; i < n; ++i) {
+    ++occupancy[static_cast<std::size_t>(cell_index(cell_of_[i]))];
+  }
+  const int fullest = *std::max_element(occupancy.begin(), occupancy.end());
+  block_ = kSlotChunk * ((fullest + fullest / 4 + 2 + kSlotChunk - 1) / kSlotChunk);
+  blocks_.assign((n_cells + 1) * static_cast<std::size_t>(block_) + kSlotChunk, 0);
+  candidates_.assign(27 * static_cast<std::size_t>(block_) + kScanLanes, -1);
+  columns_.resize(candidates_.size());
+  for (std::size_t i = 0; i < n; ++i) bin(static_cast<int>(i), cell_index(cell_of_[i]));
   for (std::size_t i = 0; i < n; ++i) predict(store, static_cast<int>(i), -1);
 }
 
@@ -333,7 +501,7 @@ EventStats EventDrivenCollider::advance_to(ParticleStore& store, const Domain& d
   predictions_ = pair_checks_ = 0;
   const std::size_t n = store.size();
   if (n != flight_.size()) throw std::logic_error("EventDrivenCollider: store changed size");
-  while (!heap_.empty() && heap_[0].time <= target) {
+  while (n > 0 && heap_[0].time <= target) {
     const int i = heap_[0].particle;
     const auto a = static_cast<std::size_t>(i);
     Pending& p = pending_[a];
@@ -344,21 +512,16 @@ EventStats EventDrivenCollider::advance_to(ParticleStore& store, const Domain& d
       const auto ax = static_cast<std::size_t>(axis);
       const int step = face % 2 == 0 ? -1 : 1;
       sync(store, i, now_);
-      const auto old_cell = static_cast<std::size_t>(cell_index(cell_of_[a]));
-      if (prev_[a] >= 0) next_[static_cast<std::size_t>(prev_[a])] = next_[a];
-      else head_[old_cell] = next_[a];
-      if (next_[a] >= 0) prev_[static_cast<std::size_t>(next_[a])] = prev_[a];
+      unbin(i);
       int c = cell_of_[a][ax] + step;
       if (c < 0) c += cells_[ax];
       if (c >= cells_[ax]) c -= cells_[ax];
       cell_of_[a][ax] = c;
       // Snap onto the shared face (wrapped) so the new cell's exit test starts exactly at 0.
       flight_[a].position[axis] = lo_[axis] + (step > 0 ? c : c + 1) * cell_size_[ax];
-      const auto new_cell = static_cast<std::size_t>(cell_index(cell_of_[a]));
-      prev_[a] = -1;
-      next_[a] = head_[new_cell];
-      if (head_[new_cell] >= 0) prev_[static_cast<std::size_t>(head_[new_cell])] = i;
-      head_[new_cell] = i;
+      const int new_cell = cell_index(cell_of_[a]);
+      if (blocks_[static_cast<std::size_t>(new_cell * block_)] == block_ - 1) grow_cells();
+      bin(i, new_cell);
       ++stats.cell_crossings;
       const bool stale = p.partner >= 0 && counter_[static_cast<std::size_t>(p.partner)] != p.partner_count;
       stats.stale_events += stale ? 1 : 0;

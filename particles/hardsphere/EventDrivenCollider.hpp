@@ -9,11 +9,22 @@
 // state is stored at the time of its last event and extrapolated with Eqs 2.11–2.13 on demand.
 // Cells are at least one largest diameter wide. Each particle holds only its earliest predicted
 // collision (partner or wall, with the partner's collision counter at prediction time) and its
-// next cell crossing; an indexed binary heap over particles orders them. Why this is complete:
+// next cell crossing; an indexed 4-ary heap over particles orders them. Why this is complete:
 // every pair that will touch is adjacent from the later of the partners' last events on, and each
 // of those events scans the cells that became adjacent (all 27 after a collision, the new layer
 // of 9 after a crossing); a candidate whose partner has collided since is stale and triggers a
 // full rescan of that particle when its time comes. Impulses: CollisionImpulse.hpp.
+//
+// Speed (the pair scan is most of the work; bench/bench_hardsphere.cpp measures it): each cell
+// owns a fixed block of ints, its occupancy followed by its particles' indices. A scan lists the
+// adjacent cells (from a grid padded with one layer of wrapped or empty cells, or, for interior
+// cells of large grids, by index arithmetic), gathers their particles by copying whole blocks and
+// advancing by the occupancy (no branch per cell, no list chasing), copies the candidates' flight
+// states into columns and takes all contact times in one loop without data-dependent branches
+// (minimum image and "never" by selects) that the compiler vectorises, for AVX2 too where the
+// machine has it. The arithmetic is that of ballistic_contact_time_or_never, so none of this
+// changes a result. A cell that overflows its block doubles every block (rare: blocks start with
+// room above the fullest cell at binning).
 #include <array>
 #include <cstdint>
 #include <vector>
@@ -62,9 +73,13 @@ class EventDrivenCollider {
  private:
   static constexpr int kNoPartner = -1000;  ///< partners >= 0 are particles, -1 - face are walls
   static constexpr std::uint32_t kBurstLimit = 256;  ///< collisions of one particle a few ulps apart
+  static constexpr int kHeapArity = 4;  ///< children per node of the event heap
+  static constexpr int kSlotChunk = 8;  ///< gather() copies blocks in chunks of this many slots
+  static constexpr int kScanLanes = 4;  ///< scan() pads its candidates to a multiple of this
+  static constexpr std::size_t kCachedPaddedCells = 1 << 16;  ///< 256 KiB of cell indices
 
   /// Compact per-particle flight state (one cache line): what the pair scan reads.
-  struct Flight {
+  struct alignas(64) Flight {
     Vec3 position;
     double clock;  ///< time at which position and velocity are valid
     Vec3 velocity;
@@ -83,10 +98,33 @@ class EventDrivenCollider {
   /// Rescans all adjacent cells and walls (layer < 0), or after a crossing only the cells that
   /// became adjacent (layer = crossed face), keeping the earlier of old and new candidates.
   void predict(const ParticleStore& store, int i, int layer);
-  /// Updates p with the earliest contact of i with the particles of `cell`.
-  void scan(int i, int cell, const Vec3& x, const Vec3& v, Pending& p);
-  template <bool kAccelerated>
-  void scan_cell(int i, int cell, const Vec3& x, const Vec3& v, Pending& p);
+  /// Copies the particles of `cells` into candidates_ and returns how many there are.
+  int gather(const int* cells, int count);
+  /// Updates p with the earliest contact of i (at x, moving with v) with the first `count`
+  /// candidates.
+  void scan(int i, int count, const Vec3& x, const Vec3& v, Pending& p);
+  /// Scratch of scan(): the candidates' flight states as columns, and their contact times.
+  struct CandidateColumns {
+    std::vector<double> x, y, z, vx, vy, vz, clock, radius, time;
+    void resize(std::size_t n) {
+      for (auto* column : {&x, &y, &z, &vx, &vy, &vz, &clock, &radius, &time}) column->resize(n);
+    }
+  };
+  /// The scanning particle and the box, as scan() hands them to contact_times().
+  struct ScanFrame {
+    std::array<double, 3> position, velocity, acceleration, length, half_image;
+    double now, radius;
+  };
+  /// columns.time[k] = absolute contact time with candidate k, or +inf if they never touch.
+  static void contact_times(CandidateColumns& columns, int count, const ScanFrame& frame);
+  /// Puts particle i into `cell` (its block must have room: grow_cells() first) or takes it out.
+  void bin(int i, int cell);
+  void unbin(int i);
+  /// Doubles every cell's block, keeping each cell's order.
+  void grow_cells();
+  /// Writes the stencil_size_ cells adjacent to cell c (itself included) in stencil order.
+  int adjacent_cells(const std::array<int, 3>& c, std::array<int, 27>& out) const;
+  int padded_index(const std::array<int, 3>& c) const;
   int cell_index(const std::array<int, 3>& c) const;
   /// Time from now until particle i leaves its cell, and across which face; +inf if never.
   double next_crossing(int i, const Vec3& x, const Vec3& v, int* face) const;
@@ -104,6 +142,7 @@ class EventDrivenCollider {
   std::array<double, 3> cell_size_{1, 1, 1};
   std::array<int, 3> cells_{1, 1, 1};
   std::array<bool, 3> periodic_{true, true, true};
+  std::array<double, 3> half_image_{};  ///< half the length of periodic axes, +inf on the others
   std::array<std::array<bool, 2>, 3> wall_{};
   std::vector<Flight> flight_;               ///< authoritative x, v while events are pending
   std::vector<Pending> pending_;
@@ -111,14 +150,27 @@ class EventDrivenCollider {
   std::vector<double> burst_start_;          ///< collapse detection: start of the current burst
   std::vector<std::uint32_t> burst_count_;
   std::vector<std::array<int, 3>> cell_of_;  ///< current cell of each particle
-  std::vector<int> head_, next_, prev_;      ///< doubly linked particles per cell
-  std::vector<int> stencil_start_, stencil_; ///< adjacent cells of each cell (CSR)
+  int block_ = 8;                            ///< ints per cell block, a multiple of kSlotChunk
+  std::vector<int> blocks_;                  ///< per cell: occupancy, then particles; spare chunk
+  std::vector<int> slot_of_;                 ///< index into blocks_ of each particle
+  std::vector<int> candidates_;              ///< scratch of gather(): 27 whole blocks and padding
+  CandidateColumns columns_;                 ///< scratch of scan()
+  int stencil_size_ = 27;                    ///< adjacent cells of a cell, itself included
+  std::array<int, 3> pad_{};                 ///< layers of border cells (1 on the active axes)
+  std::array<int, 3> padded_cells_{};
+  std::vector<int> padded_cell_;             ///< padded grid -> cell (wrapped, or the empty one)
+  std::array<int, 27> stencil_offset_{};     ///< the adjacent cells' offsets in the padded grid
+  std::array<int, 27> interior_offset_{};    ///< and in the grid itself, from an interior cell
+  bool arithmetic_interior_ = false;         ///< whether interior cells use interior_offset_
+  int empty_cell_ = 0;                       ///< stands in for cells beyond walls (n_cells)
+  int layer_size_ = 9;                       ///< cells one step across a face
+  std::array<std::array<int, 9>, 6> layer_offsets_{};  ///< their positions in a stencil, per face
   std::vector<Vec3> angular_acceleration_;
   struct HeapEntry {
     double time;  ///< key() of the particle, cached for the sift loops
     int particle;
   };
-  std::vector<HeapEntry> heap_;              ///< indexed binary min-heap of particles by key()
+  std::vector<HeapEntry> heap_;              ///< indexed 4-ary min-heap of particles by key()
   std::vector<int> heap_position_;
   long predictions_ = 0, pair_checks_ = 0;
 };

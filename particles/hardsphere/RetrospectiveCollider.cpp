@@ -1,6 +1,7 @@
 #include "particles/hardsphere/RetrospectiveCollider.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <functional>
 #include <limits>
@@ -71,11 +72,30 @@ void RetrospectiveCollider::find_candidates(const ParticleStore& store, const Do
   candidate_pairs_.clear();
   if (candidate_pairs_.capacity() < 8 * n) candidate_pairs_.reserve(16 * n);  // grows rarely
   cells_.build(store.position);
+  // Domain::separation with the box hoisted and the minimum image as masked adds (h = +inf on
+  // axes that are not periodic): the same numbers, without its per-axis branches in this loop.
+  std::array<double, 3> length{}, half{};
+  for (int k = 0; k < 3; ++k) {
+    const auto axis = static_cast<std::size_t>(k);
+    const bool periodic = k < domain.dimension && domain.periodic(k);
+    length[axis] = periodic ? domain.hi[k] - domain.lo[k] : 0.0;
+    half[axis] = periodic ? 0.5 * length[axis] : std::numeric_limits<double>::infinity();
+  }
+  const Vec3* position = store.position.data();
+  const double* radius = store.radius.data();
+  const double twice_margin = 2.0 * margin;
   cells_.for_each_pair([&](int i, int j) {
     const auto a = static_cast<std::size_t>(i), b = static_cast<std::size_t>(j);
-    if (store.is_fixed(a) && store.is_fixed(b)) return;
-    const double reach = store.radius[a] + store.radius[b] + 2.0 * margin;
-    if (domain.separation(store.position[a], store.position[b]).squaredNorm() < reach * reach)
+    double distance2 = 0.0;
+    for (std::size_t axis = 0; axis < 3; ++axis) {
+      const auto k = static_cast<int>(axis);
+      double d = position[b][k] - position[a][k];
+      d -= d > half[axis] ? length[axis] : 0.0;
+      d += d < -half[axis] ? length[axis] : 0.0;
+      distance2 += d * d;
+    }
+    const double reach = radius[a] + radius[b] + twice_margin;
+    if (distance2 < reach * reach && !(store.is_fixed(a) && store.is_fixed(b)))
       candidate_pairs_.emplace_back(i, j);
   });
   // Compressed adjacency: candidates of particle i are candidate_list_[start[i] .. start[i+1]).
