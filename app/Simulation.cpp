@@ -215,6 +215,12 @@ void Simulation::read_checkpoint(const fs::path& path) {
   clock_.t = root.real_attribute("time");
   clock_.output_index = static_cast<long>(root.integer_attribute("output_index"));
   clock_.next_output = root.real_attribute("next_output");
+  if (clock_.next_output <= clock_.t) {
+    // A finished run continued to a later t_end: its last output was at the old end.
+    clock_.next_output = output_interval_ > 0 ? std::min(t_end_, output_interval_ * static_cast<double>(clock_.output_index))
+                                              : t_end_;
+    if (clock_.next_output <= clock_.t) clock_.next_output = t_end_;
+  }
   clock_.wall_before = root.real_attribute("wall_s");
   clock_.step_wall_before = root.real_attribute("step_wall_s");
   for (const auto& attr : {std::string("particles"), std::string("fields")}) {
@@ -295,10 +301,10 @@ int Simulation::run() {
     if (debug_kill_during_ == "step" && clock_.step == debug_kill_step_) std::raise(SIGKILL);
     bool hits_output = false;
     const double dt = choose_dt(hits_output);
+    system_->save_good_state();  // also before a refused step: the failure path restores it
     if (!(dt > 0) || !std::isfinite(dt)) {
       failure = fmt::format("time step {} is not positive and finite", dt);
     } else {
-      system_->save_good_state();
       Stopwatch step_clock;
       try {
         system_->advance(clock_.t, dt);
