@@ -129,6 +129,17 @@ def restart_is_exact():
     expect(s_full["steps"] == s_part["steps"], f"same number of steps ({s_part['steps']})")
 
 
+def continue_past_t_end():
+    # A finished run (its checkpoint at t_end) continued to a later t_end equals a straight run:
+    # sod.toml writes output every 0.1, so both runs step onto t = 0.1 the same way.
+    _, straight, _ = run("sod.toml", "run.t_end=0.2", out=scratch("sod_straight"))
+    part = scratch("sod_continued")
+    run("sod.toml", "run.t_end=0.1", out=part)
+    grainwave("run", case("sod.toml"), "--set", "run.t_end=0.2", "--out", part, "--restart", part, check=0)
+    a, b = read_fluid(last_output(straight)), read_fluid(last_output(part))
+    expect(all(np.array_equal(a[k], b[k]) for k in ("rho", "u", "p")), "the continued run reaches t = 0.2 bitwise")
+
+
 def too_large_cfl_is_caught():
     s, out, proc = run("sod.toml", "fluid.cfl=5", check=3)
     text = proc.stdout + proc.stderr
@@ -185,6 +196,7 @@ if __name__ == "__main__":
     main({
         "fluid_sod_against_exact": sod_against_exact,
         "fluid_vortex_order_uniform": vortex_order_uniform,
+        "fluid_continue_past_t_end": continue_past_t_end,
         "fluid_vortex_capturing_keeps_order": vortex_capturing_keeps_order,
         "fluid_vortex_error_decreases_with_eps": vortex_error_decreases_with_eps,
         "fluid_conservation_with_capturing": conservation_with_capturing,
