@@ -783,13 +783,16 @@ void FluidModel<Dim>::add_penalization(std::size_t slot, double* out) {
 template <int Dim>
 void FluidModel<Dim>::measure_forces(double t) {
   // Per body: force and torque by the volume integrals of 002 Eqs 2.32/2.34,
-  // F = int chi_F div(sigma) dV, T = int chi_F r x div(sigma) dV (for a symmetric sigma the second
-  // is the surface integral of r x sigma n). The weight chi_F is the body grown by a smoothed
-  // layer 2w thick: the integral is then the traction averaged over that layer of gas just outside
-  // the surface, where the wall shear lives (inside the body the velocity is rigid and tau ~ 0,
-  // so a weight centred on the surface would see half of it); and the control-volume momentum balance with a smooth
+  // F = int chi_F div(sigma - rho u (u - v)) dV, T = int chi_F r x (...) dV (for a symmetric sigma
+  // the second is the surface integral of r x sigma n). The weight chi_F is the body grown by a
+  // smoothed layer 2w thick: the integral is then the traction averaged over that layer of gas
+  // just outside the surface, where the wall shear lives (inside the body the velocity is rigid
+  // and tau ~ 0, so a weight centred on the surface would see half of it). In that layer the gas
+  // moves, so the momentum it carries relative to the body is part of the balance (inside the
+  // body, Eq. 2.32's domain, u = v and the term vanishes); and the control-volume momentum balance with a smooth
   // box weight W around the body (1 near it, 0 outside the box),
-  //     F_cv = int grad W . Pi dV - d/dt int W rho u dV,   Pi = rho (u - v) u + (p - p_far) I - tau,
+  //     F_cv = int grad W . Pi dV - d/dt int W rho u dV,
+  //     Pi = rho (u - v) u - rho_far (U - v) U + (p - p_far) I - tau  (U the free stream),
   // with v the velocity of the box (it moves with the body; d/dt is the total derivative of the
   // moving integral), which measures the momentum flux far from the body: an independent cross-check.
   grid_->fill_ghosts();
@@ -841,11 +844,23 @@ void FluidModel<Dim>::measure_forces(double t) {
       const std::ptrdiff_t at = interior_at_[m.point];
       const auto au = static_cast<std::size_t>(at);
       double* sum = sums.data() + static_cast<std::size_t>(m.body) * kSums;
+      // div(sigma) less the divergence of the momentum flux relative to the body,
+      // rho u (u - v): the weight's layer lies in the gas, where that flux is not zero.
       std::array<double, 3> div_sigma{};
+      const auto& v = penalization_.bodies[static_cast<std::size_t>(m.body)].velocity;
       for (int a = 0; a < Dim; ++a) {
         const auto aa = static_cast<std::size_t>(a);
-        div_sigma[aa] = -central_derivative(p_.data(), at, shape.stride(a), 1 / h[aa]);
+        const std::ptrdiff_t stride = shape.stride(a);
+        div_sigma[aa] -= central_derivative(p_.data(), at, stride, 1 / h[aa]);
         if (viscous_) div_sigma[aa] += force_rhs_[(aa + 1) * per_block + m.point];
+        for (int i = 0; i < Dim; ++i) {
+          const auto ii = static_cast<std::size_t>(i);
+          auto flux = [&](std::ptrdiff_t k) {
+            const auto ku = static_cast<std::size_t>(at + k * stride);
+            return rho_[ku] * u_[ii][ku] * (u_[aa][ku] - v[aa]);
+          };
+          div_sigma[ii] -= (kCentral1 * (flux(1) - flux(-1)) + kCentral2 * (flux(2) - flux(-2))) / h[aa];
+        }
       }
       const auto x = position(m.point);
       const auto& c = centre[static_cast<std::size_t>(m.body)];
@@ -901,7 +916,11 @@ void FluidModel<Dim>::measure_forces(double t) {
           for (int j = 0; j < Dim; ++j) {
             const auto jj = static_cast<std::size_t>(j);
             // The box moves with the body (velocity v): momentum crosses it at u - v.
-            double pi = rho_[at] * (u_[jj][at] - body.velocity[jj]) * u_[ii][at] + (i == j ? p_[at] - p_far_ : 0.0);
+            // Less the free stream's flux: a constant integrates to zero against grad W, but not
+            // exactly by the point sums across level changes of the adaptive grid.
+            double pi = rho_[at] * (u_[jj][at] - body.velocity[jj]) * u_[ii][at] -
+                        rho_far_ * (free_stream_[jj] - body.velocity[jj]) * free_stream_[ii] +
+                        (i == j ? p_[at] - p_far_ : 0.0);
             if (viscous_) pi -= inv_re * viscous_stress<Dim>(grad, mu_[at], j, i);
             flux += grad_w[jj] * pi;
           }
