@@ -46,6 +46,15 @@ def grainwave(*args, ranks=None, check=None, timeout=None):
     return proc
 
 
+def run_scene(name, *settings, ranks=None, check=0, out=None):
+    """Runs cases/NAME with `--set` settings into OUT (default: a scratch folder named after the
+    case); returns (summary.json, the folder, the CompletedProcess)."""
+    out = out or scratch(name.replace(".toml", ""))
+    sets = [item for s in settings for item in ("--set", s)]
+    proc = grainwave("run", case(name), *sets, "--out", out, ranks=ranks, check=check)
+    return summary(out), out, proc
+
+
 def summary(folder):
     with open(os.path.join(folder, "summary.json")) as f:
         return json.load(f)

@@ -8,14 +8,7 @@ import os
 import h5py
 import numpy as np
 
-from gwtest import case, expect, grainwave, main, scratch, summary
-
-
-def run(name, *settings, ranks=None, check=0, out=None):
-    out = out or scratch(name.replace(".toml", ""))
-    sets = [item for s in settings for item in ("--set", s)]
-    proc = grainwave("run", case(name), *sets, "--out", out, ranks=ranks, check=check)
-    return summary(out), out, proc
+from gwtest import case, expect, grainwave, main, run_scene as run, scratch, summary
 
 
 def last_output(folder):

@@ -7,18 +7,11 @@ import os
 
 import numpy as np
 
-from gwtest import case, expect, grainwave, main, scratch, summary
+from gwtest import case, expect, grainwave, main, run_scene as run, scratch
 
 # A small, coarse cylinder run (D / 16 at the finest level) for the mechanics, not for accuracy.
 SMALL_CYLINDER = ["fluid.max_level=2", "fluid.lo=[-8.0,-8.0,0.0]", "fluid.hi=[16.0,8.0,1.0]", "fluid.roots=[3,2,1]",
                   "fluid.sponge_width=3.0", "run.t_end=1.0", "output.interval=0.5", "penalization.average_after=0.5"]
-
-
-def run(name, *settings, ranks=None, check=0, out=None):
-    out = out or scratch(name.replace(".toml", ""))
-    sets = [item for s in settings for item in ("--set", s)]
-    proc = grainwave("run", case(name), *sets, "--out", out, ranks=ranks, check=check)
-    return summary(out), out, proc
 
 
 def read_forces(folder):
