@@ -49,19 +49,10 @@ void BM_EulerRhsBlock(benchmark::State& state) {
   for (int a = 0; a < Dim; ++a) w.u[static_cast<std::size_t>(a)] = u[static_cast<std::size_t>(a)].data();
   std::array<const double*, kFields> qp{};
   for (int f = 0; f < kFields; ++f) qp[static_cast<std::size_t>(f)] = q[static_cast<std::size_t>(f)].data();
+  std::array<double*, Dim> u_out{};
+  for (int a = 0; a < Dim; ++a) u_out[static_cast<std::size_t>(a)] = u[static_cast<std::size_t>(a)].data();
   for (auto _ : state) {
-    for (std::size_t at = 0; at < volume; ++at) {
-      const double r = q[0][at], inv = 1 / r;
-      double kinetic = 0;
-      for (int a = 0; a < Dim; ++a) {
-        const double ua = q[static_cast<std::size_t>(a) + 1][at] * inv;
-        u[static_cast<std::size_t>(a)][at] = ua;
-        kinetic += ua * ua;
-      }
-      rho[at] = r;
-      e[at] = q[kFields - 1][at] * inv;
-      p[at] = 0.4 * (q[kFields - 1][at] - 0.5 * r * kinetic);
-    }
+    gf::block_primitives<Dim>(qp, volume, 1.4, rho.data(), u_out, e.data(), p.data());
     for (std::size_t k = 0; k < interior.size(); ++k) {
       double* o = out.data() + k * kFields;
       for (int f = 0; f < kFields; ++f) o[f] = 0;

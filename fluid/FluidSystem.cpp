@@ -233,7 +233,6 @@ class FluidModel : public io::System {
   double eta_b_ = 0, eta_c_ = 0, mask_width_ = 0, p_far_ = 0, rho_far_ = 1;
   std::array<double, Dim> free_stream_{};
   std::vector<std::vector<MaskedPoint>> masked_;  // per local block
-  std::vector<int> mask_owner_;                    // per interior point: entry in the block's list
   std::vector<double> temperature_, force_rhs_;
   std::vector<std::vector<ForceSample>> force_history_;  // per body, one sample per step
   std::vector<std::array<double, 3>> cv_momentum_;     // per body: integral of W rho u at cv_time_
@@ -623,21 +622,9 @@ void FluidModel<Dim>::compute_primitives(std::size_t slot) {
   // Primitives at every point of the block, ghosts included (the stencils read them).
   std::array<const double*, kFields> q{};
   for (int f = 0; f < kFields; ++f) q[static_cast<std::size_t>(f)] = grid_->block(f, slot).data();
-  const double gm1 = gamma_ - 1;
-  const std::size_t volume = rho_.size();
-  for (std::size_t at = 0; at < volume; ++at) {
-    const double rho = q[0][at], inv_rho = 1 / rho;
-    double kinetic = 0;
-    for (int a = 0; a < Dim; ++a) {
-      const double ua = q[static_cast<std::size_t>(a) + 1][at] * inv_rho;
-      u_[static_cast<std::size_t>(a)][at] = ua;
-      kinetic += ua * ua;
-    }
-    const double E = q[kFields - 1][at];
-    rho_[at] = rho;
-    e_[at] = E * inv_rho;
-    p_[at] = gm1 * (E - 0.5 * rho * kinetic);
-  }
+  std::array<double*, Dim> u{};
+  for (int a = 0; a < Dim; ++a) u[static_cast<std::size_t>(a)] = u_[static_cast<std::size_t>(a)].data();
+  block_primitives<Dim>(q, rho_.size(), gamma_, rho_.data(), u, e_.data(), p_.data());
 }
 
 template <int Dim>
@@ -795,8 +782,7 @@ void FluidModel<Dim>::measure_forces(double t) {
   //     Pi = rho (u - v) u - rho_far (U - v) U + (p - p_far) I - tau  (U the free stream),
   // with v the velocity of the box (it moves with the body; d/dt is the total derivative of the
   // moving integral), which measures the momentum flux far from the body: an independent cross-check.
-  grid_->fill_ghosts();
-  fill_boundary_ghosts();
+  // Precondition: ghosts are current (advance and the constructor leave them so).
   const std::size_t bodies = penalization_.bodies.size();
   constexpr std::size_t kSums = 14;  // force 3, torque 3, flux 3, momentum 3, mass, energy
   std::vector<double> sums(bodies * kSums, 0.0);

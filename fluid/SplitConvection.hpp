@@ -46,6 +46,27 @@ struct BlockPrimitives {
   const double* e;
 };
 
+/// Primitives at every point of a block (ghosts included) from its conserved fields q = (rho,
+/// rho u, E): rho, u, e = E / rho and p = (gamma - 1) (E - rho |u|^2 / 2).
+template <int Dim>
+inline void block_primitives(const std::array<const double*, Dim + 2>& q, std::size_t volume, double gamma,
+                             double* rho, const std::array<double*, Dim>& u, double* e, double* p) {
+  const double gm1 = gamma - 1;
+  for (std::size_t at = 0; at < volume; ++at) {
+    const double r = q[0][at], inv_r = 1 / r;
+    double kinetic = 0;
+    for (std::size_t a = 0; a < static_cast<std::size_t>(Dim); ++a) {
+      const double ua = q[a + 1][at] * inv_r;
+      u[a][at] = ua;
+      kinetic += ua * ua;
+    }
+    const double E = q[Dim + 1][at];
+    rho[at] = r;
+    e[at] = E * inv_r;
+    p[at] = gm1 * (E - 0.5 * r * kinetic);
+  }
+}
+
 /// Adds -(inviscid flux divergence along `axis`) at array point i to out[0..Dim+1]
 /// (rho, rho u_k, E). stride: array stride of the axis; inv_h: 1 / spacing.
 template <int Dim>
