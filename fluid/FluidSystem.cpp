@@ -216,8 +216,9 @@ class FluidModel : public io::System {
   std::vector<double> rho_, p_, e_, wave_, psi_, sound_;
   std::array<std::vector<double>, Dim> u_;
   // Viscous scratch: gradients of u_i and T along each axis, mu, and the fluxes along one axis.
-  std::array<std::array<std::vector<double>, Dim>, Dim + 1> gradient_;
+  std::array<std::array<std::vector<double>, Dim>, Dim> gradient_;  // d_j u_i
   std::vector<double> mu_;
+  std::vector<double> kinetic_;  // |u|^2 / 2 at every array point (viscous work)
   std::array<std::vector<double>, Dim + 1> viscous_flux_;
   std::vector<std::ptrdiff_t> viscous_points_;  // array points whose gradients the fluxes need
 
@@ -225,12 +226,12 @@ class FluidModel : public io::System {
   struct MaskedPoint {
     std::size_t point = 0;  ///< interior point number in the block
     int body = 0;
-    double chi = 0;        ///< penalization mask: the step lies inside the body, 0 <= d <= 2w
-    double chi_force = 0;  ///< force-integral weight: the step lies just outside, -2w <= d <= 0
+    double chi = 0;        ///< penalization mask: the step spans delta - w <= d <= delta + w
+    double chi_force = 0;  ///< force-integral weight: the step lies just outside chi's, ending at d = delta - w
     std::array<double, Dim> inward{}, u0{};
   };
   PenalizationSettings penalization_;
-  double eta_b_ = 0, eta_c_ = 0, mask_width_ = 0, p_far_ = 0, rho_far_ = 1;
+  double eta_b_ = 0, eta_c_ = 0, mask_width_ = 0, mask_depth_ = 0, p_far_ = 0, rho_far_ = 1;
   std::array<double, Dim> free_stream_{};
   std::vector<std::vector<MaskedPoint>> masked_;  // per local block
   std::vector<double> temperature_, force_rhs_;
@@ -383,6 +384,7 @@ FluidModel<Dim>::FluidModel(const Scene& scene) {
     eta_b_ = penalization_.eta_b > 0 ? penalization_.eta_b : 0.01 * h_min_;
     eta_c_ = penalization_.eta_c > 0 ? penalization_.eta_c : 1.0;
     mask_width_ = penalization_.smoothing * h_min_;
+    mask_depth_ = (penalization_.mask_depth >= 0 ? penalization_.mask_depth : default_mask_depth(penalization_.smoothing)) * h_min_;
     const auto far = initial_.kind == InitialKind::kShock ? initial_.ahead_of_shock() : initial_.left;
     rho_far_ = far.rho;
     p_far_ = far.p;
@@ -426,7 +428,7 @@ void FluidModel<Dim>::layout_changed() {
   const auto shape = grid_->layout().shape();
   const std::size_t volume = shape.size();
   if (rho_.size() == volume) return;
-  for (auto* v : {&rho_, &p_, &e_, &wave_, &psi_, &sound_, &temperature_}) v->assign(volume, 0.0);
+  for (auto* v : {&rho_, &p_, &e_, &wave_, &psi_, &sound_, &temperature_, &kinetic_}) v->assign(volume, 0.0);
   force_rhs_.assign(static_cast<std::size_t>(kFields) * grid_->points_per_block(), 0.0);
   for (auto& v : u_) v.assign(volume, 0.0);
   viscous_points_.clear();
@@ -636,9 +638,9 @@ typename FluidModel<Dim>::MaskedPoint FluidModel<Dim>::mask_at(const std::array<
     const Body& body = penalization_.bodies[k];
     std::array<double, 3> inward{};
     const double d = body.signed_distance(x3, t, inward);
-    const double chi_force = smoothed_mask(d + mask_width_, mask_width_);
+    const double chi_force = smoothed_mask(d - mask_depth_ + 2 * mask_width_, mask_width_);
     if (chi_force <= best.chi_force) continue;
-    best.chi = smoothed_mask(d - mask_width_, mask_width_);
+    best.chi = smoothed_mask(d - mask_depth_, mask_width_);
     best.chi_force = chi_force;
     best.body = static_cast<int>(k);
     const auto u0 = body.velocity_at(x3, t);
@@ -658,10 +660,10 @@ typename FluidModel<Dim>::MaskedPoint FluidModel<Dim>::mask_at(const std::array<
 template <int Dim>
 bool FluidModel<Dim>::near_interface(const std::array<double, Dim>& lo, const std::array<double, Dim>& hi,
                                      double t) const {
-  // The bands |d| <= 2w around each surface (mask inside, force weight outside), widened by two
+  // The bands around each surface where chi and the force weight vary, widened by two
   // finest spacings so that a body moving (at most about one spacing per step) stays inside
   // finest blocks between adaptations.
-  const double reach = 2 * mask_width_ + 2 * h_min_;
+  const double reach = std::max(3 * mask_width_ - mask_depth_, mask_depth_ + mask_width_) + 2 * h_min_;
   std::array<double, 3> lo3{}, hi3{};
   for (int a = 0; a < Dim; ++a) {
     lo3[static_cast<std::size_t>(a)] = lo[static_cast<std::size_t>(a)];
@@ -696,7 +698,7 @@ void FluidModel<Dim>::update_masks(double t) {
       hi3[au] = x0[au] + (bs - 1) * h[au];
     }
     bool touched = false;
-    for (const Body& body : penalization_.bodies) touched = touched || body.distance_bounds(lo3, hi3, t)[1] > -2 * mask_width_;
+    for (const Body& body : penalization_.bodies) touched = touched || body.distance_bounds(lo3, hi3, t)[1] > mask_depth_ - 3 * mask_width_;
     if (!touched) continue;
     for (std::size_t p = 0; p < interior_at_.size(); ++p) {
       std::array<double, Dim> x{};
@@ -1033,7 +1035,7 @@ std::optional<double> FluidModel<Dim>::recirculation_length() const {
   // Points on the wake axis (within half a spacing of it) behind the mask band: where the
   // streamwise velocity relative to the body first turns from negative to positive.
   const auto c = body.centre_at(stats_.t);
-  const double start = body.radius + mask_width_;
+  const double start = body.radius + std::max(mask_width_, 2 * mask_width_ - mask_depth_);
   const int bs = config_.block_size;
   struct AxisPoint { double s, along; };
   std::vector<AxisPoint> axis;
@@ -1148,9 +1150,14 @@ void FluidModel<Dim>::add_viscous_terms(std::size_t slot, double* out) {
       const std::ptrdiff_t stride = shape.stride(a);
       for (int i = 0; i < Dim; ++i)
         gradient_[static_cast<std::size_t>(i)][aa][au] = central_derivative(u_[static_cast<std::size_t>(i)].data(), at, stride, inv_h);
-      gradient_[Dim][aa][au] = central_derivative(wave_.data(), at, stride, inv_h);
     }
     mu_[au] = sutherland_viscosity(wave_[au], sutherland_s1_);
+  }
+  // |u|^2 / 2: the work of the Laplacian stresses is d_j(mu d_j |u|^2/2) (ViscousTerms.hpp).
+  for (std::size_t at = 0; at < kinetic_.size(); ++at) {
+    double k = 0;
+    for (int i = 0; i < Dim; ++i) k += u_[static_cast<std::size_t>(i)][at] * u_[static_cast<std::size_t>(i)][at];
+    kinetic_[at] = 0.5 * k;
   }
   for (int j = 0; j < Dim; ++j) {
     const auto ju = static_cast<std::size_t>(j);
@@ -1161,18 +1168,26 @@ void FluidModel<Dim>::add_viscous_terms(std::size_t slot, double* out) {
         for (int k = 0; k < Dim; ++k) grad[i][k] = gradient_[static_cast<std::size_t>(i)][static_cast<std::size_t>(k)][au];
       double work = 0;
       for (int i = 0; i < Dim; ++i) {
-        const double tau = inv_re * viscous_stress<Dim>(grad, mu_[au], i, j);
-        viscous_flux_[static_cast<std::size_t>(i)][au] = tau;
-        work += u_[static_cast<std::size_t>(i)][au] * tau;
+        const double rest = inv_re * viscous_stress_rest<Dim>(grad, mu_[au], i, j);
+        viscous_flux_[static_cast<std::size_t>(i)][au] = rest;
+        work += u_[static_cast<std::size_t>(i)][au] * rest;
       }
-      viscous_flux_[Dim][au] = work + conduction * mu_[au] * gradient_[Dim][ju][au];
+      viscous_flux_[Dim][au] = work;
     }
-    const double inv_h = 1 / h[ju];
+    const double inv_h = 1 / h[ju], inv_h2 = inv_h * inv_h;
     const std::ptrdiff_t stride = shape.stride(j);
-    for (std::size_t p = 0; p < per_block; ++p)
+    for (std::size_t p = 0; p < per_block; ++p) {
+      const std::ptrdiff_t at = interior_at_[p];
       for (int f = 0; f <= Dim; ++f)
         out[static_cast<std::size_t>(f + 1) * per_block + p] +=
-            central_derivative(viscous_flux_[static_cast<std::size_t>(f)].data(), interior_at_[p], stride, inv_h);
+            central_derivative(viscous_flux_[static_cast<std::size_t>(f)].data(), at, stride, inv_h);
+      for (int i = 0; i < Dim; ++i)
+        out[static_cast<std::size_t>(i + 1) * per_block + p] +=
+            inv_re * narrow_diffusion(mu_.data(), u_[static_cast<std::size_t>(i)].data(), at, stride, inv_h2);
+      out[static_cast<std::size_t>(Dim + 1) * per_block + p] +=
+          inv_re * narrow_diffusion(mu_.data(), kinetic_.data(), at, stride, inv_h2) +
+          conduction * narrow_diffusion(mu_.data(), wave_.data(), at, stride, inv_h2);
+    }
   }
 }
 
@@ -1210,10 +1225,10 @@ double FluidModel<Dim>::max_stable_dt() const {
       for (int a = 0; a < Dim; ++a) r += (std::abs(w.u[static_cast<std::size_t>(a)]) + c) / h[static_cast<std::size_t>(a)];
       if (viscous_) {
         // Diffusion: the largest diffusivity (momentum 4/3 nu or heat gamma nu / Pr) times the
-        // spectral radius of the nested 4th-order derivatives, ~ (4/3)^2 per axis / h^2.
+        // spectral radius of the narrow 4th-order second derivative, 16/3 per axis / h^2.
         const double nu = sutherland_viscosity(c * c, sutherland_s1_) / (w.rho * reynolds_);
         const double diffusivity = nu * std::max(4.0 / 3.0, gamma_ / prandtl_);
-        for (int a = 0; a < Dim; ++a) r += 1.8 * diffusivity / (h[static_cast<std::size_t>(a)] * h[static_cast<std::size_t>(a)]);
+        for (int a = 0; a < Dim; ++a) r += (16.0 / 3.0) * diffusivity / (h[static_cast<std::size_t>(a)] * h[static_cast<std::size_t>(a)]);
       }
       if (std::isfinite(r)) rate = std::max(rate, r);
     }

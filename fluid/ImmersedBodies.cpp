@@ -133,6 +133,10 @@ void declare_penalization(SceneSchema& schema) {
       .at_least(0);
   s.real("nu_n", 0.0, "numerical viscosity on the velocity inside bodies (0: none)").at_least(0);
   s.real("smoothing", 1.5, "half-width of the mask's smoothed step, in finest grid spacings").above(0);
+  s.real("mask_depth", -1.0,
+         "depth of the mask's mid-point (chi = 1/2) inside the body surface, in finest grid spacings; negative: "
+         "0.91 smoothing - 0.445, which puts the effective no-slip wall at the surface (calibrated on the Rayleigh "
+         "problem, see ImmersedBodies.hpp)");
   s.real("average_after", 0.0, "time-averaged force metrics (Cd_mean, Cl_amplitude, St) use t >= this")
       .at_least(0);
   s.real("reference_speed", 0.0,
@@ -170,6 +174,7 @@ PenalizationSettings read_penalization(const Scene& scene, int dim) {
     out.eta_c = s.real("eta_c");
     out.nu_n = s.real("nu_n");
     out.smoothing = s.real("smoothing");
+    out.mask_depth = s.real("mask_depth");
     out.average_after = s.real("average_after");
     out.reference_speed = s.real("reference_speed");
     out.start_ramp = s.real("start_ramp");
