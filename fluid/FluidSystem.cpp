@@ -243,6 +243,8 @@ class FluidModel : public io::System {
   /// The largest body mask at x (chi, body, inward normal, body velocity); chi = 0 outside all.
   MaskedPoint mask_at(const std::array<double, Dim>& x, double t) const;
   bool near_interface(const std::array<double, Dim>& lo, const std::array<double, Dim>& hi, double t) const;
+  /// Whether a block meets a body's control-volume box or its ramp (forced to the finest level).
+  bool in_control_volume(const std::array<double, Dim>& lo, const std::array<double, Dim>& hi, double t) const;
   wavelet::ForcedRegion<Dim> forced_region(double t) const;
   void update_masks(double t);
   void relax_brinkman(double tau);
@@ -677,10 +679,30 @@ bool FluidModel<Dim>::near_interface(const std::array<double, Dim>& lo, const st
 }
 
 template <int Dim>
+bool FluidModel<Dim>::in_control_volume(const std::array<double, Dim>& lo, const std::array<double, Dim>& hi,
+                                        double t) const {
+  // The box with its weight's ramp (half-width 1.5 times the box's, measure_forces), widened by
+  // two finest spacings for moving bodies as above. On coarser levels the grid's threshold error
+  // in the momentum flux (~ eps rho U^2 per point) spoils the balance: with the default eps = 1e-2
+  // a 2 D box on the adapted Re 40 grid read 5-14% above the volume integral, 1% on a uniform grid.
+  for (const Body& body : penalization_.bodies) {
+    const auto c = body.centre_at(t);
+    const double outer = 1.5 * body.control_half_width + 2 * h_min_;
+    bool overlaps = true;
+    for (int a = 0; a < Dim; ++a) {
+      const auto aa = static_cast<std::size_t>(a);
+      overlaps = overlaps && hi[aa] >= c[aa] - outer && lo[aa] <= c[aa] + outer;
+    }
+    if (overlaps) return true;
+  }
+  return false;
+}
+
+template <int Dim>
 wavelet::ForcedRegion<Dim> FluidModel<Dim>::forced_region(double t) const {
   if (!penalized()) return {};
   return [this, t](const std::array<double, Dim>& lo, const std::array<double, Dim>& hi) {
-    return near_interface(lo, hi, t);
+    return near_interface(lo, hi, t) || (penalization_.refine_control_volume && in_control_volume(lo, hi, t));
   };
 }
 

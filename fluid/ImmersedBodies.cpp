@@ -142,6 +142,9 @@ void declare_penalization(SceneSchema& schema) {
   s.real("reference_speed", 0.0,
          "U of the force coefficients; 0: the uniform free-stream speed, or the first body's speed in still gas")
       .at_least(0);
+  s.flag("refine_control_volume", true,
+         "keep each body's control-volume box (and its weight's ramp) at the finest level, so the momentum-balance "
+         "cross-check does not carry the adaptive grid's threshold error (false: only the interface band is)");
   s.real("start_ramp", 0.0,
          "soft start: the no-slip target velocity goes smoothly from the free stream to the body velocity over "
          "this time (0: impulsive start)")
@@ -161,7 +164,7 @@ void declare_penalization(SceneSchema& schema) {
       .one_of({"adiabatic", "isothermal"});
   b.real("wall_temperature", 1.0, "isothermal wall temperature (T = c^2; 1 in the reference gas)").above(0);
   b.real("control_volume", 0.0,
-         "half-width of the control-volume box around the body for the momentum-balance force (0: 2 diameters)")
+         "half-width of the control-volume box around the body for the momentum-balance force (0: 1 diameter)")
       .at_least(0);
 }
 
@@ -178,6 +181,7 @@ PenalizationSettings read_penalization(const Scene& scene, int dim) {
     out.average_after = s.real("average_after");
     out.reference_speed = s.real("reference_speed");
     out.start_ramp = s.real("start_ramp");
+    out.refine_control_volume = s.flag("refine_control_volume");
     if (entries.empty()) s.fail("eta_b", "[penalization] without any [[body]] entry");
   }
   for (const auto& e : entries) {
@@ -214,7 +218,7 @@ PenalizationSettings read_penalization(const Scene& scene, int dim) {
     body.thermal = e.text("wall") == "isothermal" ? WallThermal::kIsothermal : WallThermal::kAdiabatic;
     body.wall_temperature = e.real("wall_temperature");
     const double cv = e.real("control_volume");
-    body.control_half_width = cv > 0 ? cv : 2 * body.diameter();
+    body.control_half_width = cv > 0 ? cv : body.diameter();
     out.bodies.push_back(body);
   }
   return out;

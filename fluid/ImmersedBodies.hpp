@@ -79,6 +79,7 @@ struct PenalizationSettings {
   double average_after = 0;  ///< force averages (Cd_mean, St) over t >= this
   double reference_speed = 0;  ///< U of the coefficients; 0: the free stream or the first body's speed
   double start_ramp = 0;       ///< time over which the no-slip target goes from free stream to body velocity
+  bool refine_control_volume = true;  ///< control-volume boxes forced to the finest level
   bool empty() const { return bodies.empty(); }
 };
 
