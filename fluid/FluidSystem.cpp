@@ -215,7 +215,7 @@ class FluidModel : public io::System {
   std::vector<std::ptrdiff_t> interior_at_;  // array index of each interior point
   std::vector<double> rho_, p_, e_, wave_, psi_, sound_;
   std::array<std::vector<double>, Dim> u_;
-  // Viscous scratch: gradients of u_i and T along each axis, mu, and the fluxes along one axis.
+  // Viscous scratch: gradients of u_i along each axis, mu, |u|^2/2, and the fluxes along one axis.
   std::array<std::array<std::vector<double>, Dim>, Dim> gradient_;  // d_j u_i
   std::vector<double> mu_;
   std::vector<double> kinetic_;  // |u|^2 / 2 at every array point (viscous work)
