@@ -23,6 +23,19 @@ double smoothed_mask(double d, double w) {
 }
 
 double Body::signed_distance(const std::array<double, 3>& x, double t, std::array<double, 3>& inward) const {
+  const double d = shape_distance(x, t, inward);
+  if (!solid_outside) return d;
+  for (double& n : inward) n = -n;
+  return -d;
+}
+
+std::array<double, 2> Body::distance_bounds(const std::array<double, 3>& lo, const std::array<double, 3>& hi,
+                                            double t) const {
+  const auto bounds = shape_distance_bounds(lo, hi, t);
+  return solid_outside ? std::array<double, 2>{-bounds[1], -bounds[0]} : bounds;
+}
+
+double Body::shape_distance(const std::array<double, 3>& x, double t, std::array<double, 3>& inward) const {
   const auto c = centre_at(t);
   std::array<double, 3> r{x[0] - c[0], x[1] - c[1], x[2] - c[2]};
   switch (shape) {
@@ -74,8 +87,8 @@ std::array<double, 3> Body::velocity_at(const std::array<double, 3>& x, double t
           velocity[2] + w[0] * r[1] - w[1] * r[0]};
 }
 
-std::array<double, 2> Body::distance_bounds(const std::array<double, 3>& lo, const std::array<double, 3>& hi,
-                                            double t) const {
+std::array<double, 2> Body::shape_distance_bounds(const std::array<double, 3>& lo, const std::array<double, 3>& hi,
+                                                  double t) const {
   const auto c = centre_at(t);
   switch (shape) {
     case BodyShape::kSphere:
@@ -160,6 +173,10 @@ void declare_penalization(SceneSchema& schema) {
       .of_length(3);
   b.reals("velocity", std::vector<double>{0, 0, 0}, "translational velocity (prescribed, constant)").of_length(3);
   b.reals("angular_velocity", std::vector<double>{0, 0, 0}, "angular velocity (prescribed, constant)").of_length(3);
+  b.text("solid", "inside",
+         "inside: the body is the shape; outside: the shape is a hollow in the solid (a container, e.g. the outer "
+         "wall of a Couette cell)")
+      .one_of({"inside", "outside"});
   b.text("wall", "adiabatic", "thermal condition: adiabatic (dT/dn = 0) or isothermal (T = wall_temperature)")
       .one_of({"adiabatic", "isothermal"});
   b.real("wall_temperature", 1.0, "isothermal wall temperature (T = c^2; 1 in the reference gas)").above(0);
@@ -215,6 +232,7 @@ PenalizationSettings read_penalization(const Scene& scene, int dim) {
     }
     if (dim == 2 && (body.angular_velocity[0] != 0 || body.angular_velocity[1] != 0))
       e.fail("angular_velocity", "a 2D body rotates about z only");
+    body.solid_outside = e.text("solid") == "outside";
     body.thermal = e.text("wall") == "isothermal" ? WallThermal::kIsothermal : WallThermal::kAdiabatic;
     body.wall_temperature = e.real("wall_temperature");
     const double cv = e.real("control_volume");

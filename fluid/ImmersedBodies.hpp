@@ -46,11 +46,13 @@ struct Body {
   WallThermal thermal = WallThermal::kAdiabatic;
   double wall_temperature = 1;  ///< T_w of an isothermal wall (T = c^2, 1 in the far field)
   double control_half_width = 0;  ///< control volume: a box of this half-width around the centre
+  bool solid_outside = false;     ///< a container: the solid is the shape's complement
 
   std::array<double, 3> centre_at(double t) const {
     return {centre[0] + velocity[0] * t, centre[1] + velocity[1] * t, centre[2] + velocity[2] * t};
   }
-  /// Signed distance to the surface (positive inside) and its gradient (the inward unit normal).
+  /// Signed distance to the surface (positive in the solid) and its gradient (the unit normal into
+  /// the solid).
   double signed_distance(const std::array<double, 3>& x, double t, std::array<double, 3>& inward) const;
   /// Rigid-body velocity at x.
   std::array<double, 3> velocity_at(const std::array<double, 3>& x, double t) const;
@@ -59,6 +61,12 @@ struct Body {
                                         double t) const;
   /// Frontal length scale: the diameter (sphere, cylinder) or box width.
   double diameter() const { return 2 * radius; }
+
+ private:
+  // The same for the shape itself (positive inside it), before solid_outside flips the sign.
+  double shape_distance(const std::array<double, 3>& x, double t, std::array<double, 3>& inward) const;
+  std::array<double, 2> shape_distance_bounds(const std::array<double, 3>& lo, const std::array<double, 3>& hi,
+                                              double t) const;
 };
 
 /// Smoothed mask of a signed distance with half-width w.

@@ -31,7 +31,8 @@ gf::Body make(gf::BodyShape shape) {
 TEST(Penalization, SignedDistanceAndInwardNormal) {
   std::array<double, 3> n{};
   const auto sphere = make(gf::BodyShape::kSphere);
-  EXPECT_NEAR(sphere.signed_distance({0.3, -0.2, 0.1}, 0, n), 0.5, 1e-15);  // centre: depth = radius
+  EXPECT_NEAR(sphere.signed_distance({0.3, -0.2, 0.1}, 0, n), 0.5,
+              1e-15);  // centre: depth = radius
   EXPECT_NEAR(sphere.signed_distance({1.3, -0.2, 0.1}, 0, n), -0.5, 1e-15);
   EXPECT_NEAR(n[0], -1, 1e-15);  // inward: back towards the centre
   const auto cylinder = make(gf::BodyShape::kCylinder);
@@ -42,31 +43,40 @@ TEST(Penalization, SignedDistanceAndInwardNormal) {
   EXPECT_NEAR(n[0], -0.6, 1e-15);
   const auto box = make(gf::BodyShape::kBox);
   EXPECT_NEAR(box.signed_distance({0.3, -0.2, 0.1}, 0, n), 0.2, 1e-15);  // nearest face: z
-  EXPECT_NEAR(box.signed_distance({0.3 + 0.7, -0.2 + 0.7, 0.1}, 0, n), -0.5, 1e-15);  // corner (0.3, 0.4)
+  EXPECT_NEAR(box.signed_distance({0.3 + 0.7, -0.2 + 0.7, 0.1}, 0, n), -0.5,
+              1e-15);                               // corner (0.3, 0.4)
+  auto container = make(gf::BodyShape::kCylinder);  // solid beyond the radius
+  container.solid_outside = true;
+  EXPECT_NEAR(container.signed_distance({0.3, 0.5, 7.0}, 0, n), 0.2, 1e-15);
+  EXPECT_NEAR(n[1], 1, 1e-15);  // into the solid: away from the axis
 }
 
 TEST(Penalization, DistanceBoundsEncloseSampledDistances) {
   std::mt19937 rng(3);
   std::uniform_real_distribution<double> u(-1.5, 1.5), w(0.01, 0.6);
-  for (auto shape : {gf::BodyShape::kSphere, gf::BodyShape::kCylinder, gf::BodyShape::kHalfSpace, gf::BodyShape::kBox}) {
-    const auto body = make(shape);
-    for (int trial = 0; trial < 200; ++trial) {
-      std::array<double, 3> lo{}, hi{};
-      for (std::size_t a = 0; a < 3; ++a) {
-        lo[a] = u(rng);
-        hi[a] = lo[a] + w(rng);
-      }
-      const auto bounds = body.distance_bounds(lo, hi, 0);
-      for (int s = 0; s < 27; ++s) {
-        std::array<double, 3> x{}, n{};
-        int rest = s;
-        for (std::size_t a = 0; a < 3; ++a, rest /= 3) x[a] = lo[a] + 0.5 * (rest % 3) * (hi[a] - lo[a]);
-        const double d = body.signed_distance(x, 0, n);
-        ASSERT_GE(d, bounds[0] - 1e-12) << "shape " << static_cast<int>(shape);
-        ASSERT_LE(d, bounds[1] + 1e-12) << "shape " << static_cast<int>(shape);
+  for (auto shape : {gf::BodyShape::kSphere, gf::BodyShape::kCylinder, gf::BodyShape::kHalfSpace,
+                     gf::BodyShape::kBox})
+    for (bool container : {false, true}) {
+      auto body = make(shape);
+      body.solid_outside = container;
+      for (int trial = 0; trial < 200; ++trial) {
+        std::array<double, 3> lo{}, hi{};
+        for (std::size_t a = 0; a < 3; ++a) {
+          lo[a] = u(rng);
+          hi[a] = lo[a] + w(rng);
+        }
+        const auto bounds = body.distance_bounds(lo, hi, 0);
+        for (int s = 0; s < 27; ++s) {
+          std::array<double, 3> x{}, n{};
+          int rest = s;
+          for (std::size_t a = 0; a < 3; ++a, rest /= 3)
+            x[a] = lo[a] + 0.5 * (rest % 3) * (hi[a] - lo[a]);
+          const double d = body.signed_distance(x, 0, n);
+          ASSERT_GE(d, bounds[0] - 1e-12) << "shape " << static_cast<int>(shape);
+          ASSERT_LE(d, bounds[1] + 1e-12) << "shape " << static_cast<int>(shape);
+        }
       }
     }
-  }
 }
 
 TEST(Penalization, SmoothedMaskIsAC1Step) {
@@ -77,7 +87,8 @@ TEST(Penalization, SmoothedMaskIsAC1Step) {
   const double e = 1e-6;  // slope vanishes at both ends, is 1/w in the middle
   EXPECT_NEAR((gf::smoothed_mask(-w + e, w) - gf::smoothed_mask(-w, w)) / e, 0.0, 1e-6);
   EXPECT_NEAR((gf::smoothed_mask(e, w) - gf::smoothed_mask(-e, w)) / (2 * e), 1 / w, 1e-6);
-  for (double d = -w; d < w; d += 0.01) EXPECT_LE(gf::smoothed_mask(d, w), gf::smoothed_mask(d + 0.01, w));
+  for (double d = -w; d < w; d += 0.01)
+    EXPECT_LE(gf::smoothed_mask(d, w), gf::smoothed_mask(d + 0.01, w));
 }
 
 TEST(Penalization, RigidBodyVelocityAndMotion) {
@@ -111,7 +122,8 @@ TEST(Penalization, BrinkmanRelaxationIsExactAndKeepsInternalEnergy) {
   gf::brinkman_relaxation<2>({&b[0], &b[1], &b[2], &b[3]}, chi, u0, tau / 2, eta, true, 1.1, gamma);
   for (std::size_t f = 0; f < 4; ++f) EXPECT_NEAR(a[f], b[f], 1e-13);
   const auto iso = gf::to_primitive<2>(a, gamma);  // T relaxes to 1.1 at the same rate
-  EXPECT_NEAR(gf::temperature(iso.rho, iso.p, gamma), 1.1 + (gf::temperature(w.rho, w.p, gamma) - 1.1) * decay, 1e-13);
+  EXPECT_NEAR(gf::temperature(iso.rho, iso.p, gamma),
+              1.1 + (gf::temperature(w.rho, w.p, gamma) - 1.1) * decay, 1e-13);
 }
 
 TEST(Penalization, ConservedRatesFollowTheChainRule) {
@@ -129,7 +141,8 @@ TEST(Penalization, ConservedRatesFollowTheChainRule) {
   };
   const double dt = 1e-6;
   const auto plus = state(dt), minus = state(-dt);
-  for (std::size_t f = 0; f < 4; ++f) EXPECT_NEAR(rates[f], (plus[f] - minus[f]) / (2 * dt), 1e-8) << "field " << f;
+  for (std::size_t f = 0; f < 4; ++f)
+    EXPECT_NEAR(rates[f], (plus[f] - minus[f]) / (2 * dt), 1e-8) << "field " << f;
 }
 
 TEST(Penalization, UpwindDerivativesAreExactForLowOrderPolynomials) {
@@ -140,6 +153,7 @@ TEST(Penalization, UpwindDerivativesAreExactForLowOrderPolynomials) {
     f[i] = 1 + 2 * x - 3 * x * x + 0.5 * x * x * x;
   }
   const double x4 = 0.4, exact = 2 - 6 * x4 + 1.5 * x4 * x4;
-  for (bool positive : {true, false}) EXPECT_NEAR(gf::upwind_derivative(f.data(), 4, 1, positive, 1 / h), exact, 1e-12);
+  for (bool positive : {true, false})
+    EXPECT_NEAR(gf::upwind_derivative(f.data(), 4, 1, positive, 1 / h), exact, 1e-12);
   EXPECT_NEAR(gf::central_second_derivative(f.data(), 4, 1, 1 / (h * h)), -6 + 3 * x4, 1e-10);
 }

@@ -21,7 +21,8 @@ constexpr double kTwoPi = 2 * std::numbers::pi;
 template <class G>
 std::vector<double> periodic_line(int n, G g) {
   std::vector<double> v(static_cast<std::size_t>(n + 2 * kGhosts));
-  for (int i = -kGhosts; i < n + kGhosts; ++i) v[static_cast<std::size_t>(i + kGhosts)] = g(((i % n + n) % n) / double(n));
+  for (int i = -kGhosts; i < n + kGhosts; ++i)
+    v[static_cast<std::size_t>(i + kGhosts)] = g(((i % n + n) % n) / double(n));
   return v;
 }
 
@@ -30,14 +31,18 @@ double max_error(int n) {
   auto mu = [](double x) { return 1 + 0.5 * std::sin(kTwoPi * x + 1); };
   auto f = [](double x) { return std::cos(2 * kTwoPi * x); };
   auto exact = [](double x) {
-    const double m = 1 + 0.5 * std::sin(kTwoPi * x + 1), dm = 0.5 * kTwoPi * std::cos(kTwoPi * x + 1);
-    const double df = -2 * kTwoPi * std::sin(2 * kTwoPi * x), d2f = -4 * kTwoPi * kTwoPi * std::cos(2 * kTwoPi * x);
+    const double m = 1 + 0.5 * std::sin(kTwoPi * x + 1),
+                 dm = 0.5 * kTwoPi * std::cos(kTwoPi * x + 1);
+    const double df = -2 * kTwoPi * std::sin(2 * kTwoPi * x),
+                 d2f = -4 * kTwoPi * kTwoPi * std::cos(2 * kTwoPi * x);
     return dm * df + m * d2f;
   };
   const auto m = periodic_line(n, mu), v = periodic_line(n, f);
   double error = 0;
   for (int i = 0; i < n; ++i)
-    error = std::max(error, std::abs(gf::narrow_diffusion(m.data(), v.data(), i + kGhosts, 1, double(n) * n) - exact(i / double(n))));
+    error = std::max(
+        error, std::abs(gf::narrow_diffusion(m.data(), v.data(), i + kGhosts, 1, double(n) * n) -
+                        exact(i / double(n))));
   return error;
 }
 
@@ -57,7 +62,8 @@ TEST(ViscousTerms, NarrowDiffusionDampsTheOddEvenMode) {
   std::vector<double> f(static_cast<std::size_t>(n + 2 * kGhosts));
   for (std::size_t i = 0; i < f.size(); ++i) f[i] = i % 2 == 0 ? 1.0 : -1.0;
   for (int i = 0; i < n; ++i)
-    EXPECT_NEAR(gf::narrow_diffusion(mu.data(), f.data(), i + kGhosts, 1, 1.0) / f[static_cast<std::size_t>(i + kGhosts)],
+    EXPECT_NEAR(gf::narrow_diffusion(mu.data(), f.data(), i + kGhosts, 1, 1.0) /
+                    f[static_cast<std::size_t>(i + kGhosts)],
                 -2.0 * 16.0 / 3.0, 1e-12);
 }
 
@@ -72,7 +78,10 @@ TEST(ViscousTerms, NarrowDiffusionConservesOnAPeriodicLine) {
     mu[static_cast<std::size_t>(i)] = positive(random);
     f[static_cast<std::size_t>(i)] = any(random);
   }
-  auto periodic = [&](const std::vector<double>& v) { return periodic_line(n, [&](double x) { return v[static_cast<std::size_t>(std::lround(x * n))]; }); };
+  auto periodic = [&](const std::vector<double>& v) {
+    return periodic_line(n,
+                         [&](double x) { return v[static_cast<std::size_t>(std::lround(x * n))]; });
+  };
   const auto m = periodic(mu), g = periodic(f);
   double sum = 0, scale = 0;
   for (int i = 0; i < n; ++i) {
