@@ -149,7 +149,7 @@ void declare_penalization(SceneSchema& schema) {
   s.real("mask_depth", -1.0,
          "depth of the mask's mid-point (chi = 1/2) inside the body surface, in finest grid spacings; negative: "
          "0.91 smoothing - 0.445, which puts the effective no-slip wall at the surface (calibrated on the Rayleigh "
-         "problem, see ImmersedBodies.hpp)");
+         "problem for smoothing 1-3, see ImmersedBodies.hpp)");
   s.real("average_after", 0.0, "time-averaged force metrics (Cd_mean, Cl_amplitude, St) use t >= this")
       .at_least(0);
   s.real("reference_speed", 0.0,
@@ -175,7 +175,7 @@ void declare_penalization(SceneSchema& schema) {
   b.reals("angular_velocity", std::vector<double>{0, 0, 0}, "angular velocity (prescribed, constant)").of_length(3);
   b.text("solid", "inside",
          "inside: the body is the shape; outside: the shape is a hollow in the solid (a container, e.g. the outer "
-         "wall of a Couette cell)")
+         "wall of a Couette cell; its forces are those on the container, without a control-volume cross-check)")
       .one_of({"inside", "outside"});
   b.text("wall", "adiabatic", "thermal condition: adiabatic (dT/dn = 0) or isothermal (T = wall_temperature)")
       .one_of({"adiabatic", "isothermal"});
