@@ -98,6 +98,14 @@ Simulation::Simulation(const Scene& scene, std::unique_ptr<io::System> system, R
 
 Simulation::~Simulation() = default;
 
+double Simulation::next_output_after(double t) const {
+  if (!(output_interval_ > 0)) return t_end_;
+  // Outputs fall on the multiples of the interval (the 1e-9 absorbs t = k interval rounded down).
+  const double k = std::floor(t / output_interval_ + 1e-9) + 1;
+  const double next = std::min(t_end_, output_interval_ * k);
+  return next > t ? next : t_end_;
+}
+
 fs::path resolve_checkpoint(const fs::path& path) {
   if (fs::is_directory(path)) {
     fs::path newest;
@@ -214,13 +222,9 @@ void Simulation::read_checkpoint(const fs::path& path) {
   clock_.step = static_cast<long>(root.integer_attribute("step"));
   clock_.t = root.real_attribute("time");
   clock_.output_index = static_cast<long>(root.integer_attribute("output_index"));
-  clock_.next_output = root.real_attribute("next_output");
-  if (clock_.next_output <= clock_.t) {
-    // A finished run continued to a later t_end: its last output was at the old end.
-    clock_.next_output = output_interval_ > 0 ? std::min(t_end_, output_interval_ * static_cast<double>(clock_.output_index))
-                                              : t_end_;
-    if (clock_.next_output <= clock_.t) clock_.next_output = t_end_;
-  }
+  // Not the stored next_output: the restart may change output.interval or continue a finished
+  // run to a later t_end (whose last output was at the old end).
+  clock_.next_output = next_output_after(clock_.t);
   clock_.wall_before = root.real_attribute("wall_s");
   clock_.step_wall_before = root.real_attribute("step_wall_s");
   for (const auto& attr : {std::string("particles"), std::string("fields")}) {
@@ -343,11 +347,7 @@ int Simulation::run() {
     if (hits_output) {
       write_output();
       just_wrote_output = true;
-      clock_.next_output = output_interval_ > 0
-                               ? std::min(t_end_, output_interval_ *
-                                                      static_cast<double>(clock_.output_index))
-                               : t_end_;
-      if (clock_.next_output <= clock_.t) clock_.next_output = t_end_;
+      clock_.next_output = next_output_after(clock_.t);
     }
     wall_ = wall.seconds();
     if (checkpoint_every_ > 0 && clock_.step % checkpoint_every_ == 0)

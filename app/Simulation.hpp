@@ -48,6 +48,8 @@ class Simulation {
   };
 
   double choose_dt(bool& hits_output) const;
+  /// The first multiple of output.interval after t (t_end if none comes before it).
+  double next_output_after(double t) const;
   void write_output();
   void write_checkpoint(const std::string& reason);
   void read_checkpoint(const std::filesystem::path& file);

@@ -15,6 +15,7 @@
 #include <cstddef>
 #include <span>
 
+#include "fluid/IdealGas.hpp"
 #include "wavelet/ArrayShape.hpp"
 
 namespace grainwave::fluid {
@@ -45,6 +46,36 @@ void fill_edge_ghosts(std::span<double* const> fields, const wavelet::ArrayShape
       fields[f][at] = (kind == BoundaryKind::kSlipWall && f == static_cast<std::size_t>(axis) + 1) ? -v : v;
     }
   }
+}
+
+/// Relaxation source of a sponge layer at one point, added to `source`: q relaxes at the rate
+/// sigma to the face state. Whole state: dq/dt = -sigma (q - q_face). Thermodynamic (outflow
+/// edges): density and pressure relax at fixed velocity,
+///   d rho/dt = -sigma (rho - rho_face),  d(rho u)/dt = u d rho/dt,
+///   d(rho E)/dt = -sigma (p - p_face)/(gamma - 1) + |u|^2/2 d rho/dt,
+/// so du/dt = 0 and, at fixed density, dp/dt = -sigma (p - p_face). An acoustic wave carries p' and
+/// is damped (at about sigma/2); a wake's velocity deficit passes unforced. The internal energy
+/// is the same function of p for both states, so gamma is not needed.
+template <int Dim>
+void add_sponge_source(const Conserved<Dim>& q, const Conserved<Dim>& face, double sigma, bool thermodynamic,
+                       Conserved<Dim>& source) {
+  if (!thermodynamic) {
+    for (std::size_t f = 0; f < q.size(); ++f) source[f] -= sigma * (q[f] - face[f]);
+    return;
+  }
+  constexpr auto energy = static_cast<std::size_t>(Dim + 1);
+  double momentum2 = 0, face_momentum2 = 0;
+  for (std::size_t i = 1; i <= static_cast<std::size_t>(Dim); ++i) {
+    momentum2 += q[i] * q[i];
+    face_momentum2 += face[i] * face[i];
+  }
+  const double rho = q[0];
+  // (p - p_face)/(gamma - 1): the difference of the internal energies per volume.
+  const double internal_excess = (q[energy] - 0.5 * momentum2 / rho) - (face[energy] - 0.5 * face_momentum2 / face[0]);
+  const double drho = -sigma * (rho - face[0]);
+  source[0] += drho;
+  for (std::size_t i = 1; i <= static_cast<std::size_t>(Dim); ++i) source[i] += drho * q[i] / rho;
+  source[energy] += -sigma * internal_excess + 0.5 * momentum2 / (rho * rho) * drho;
 }
 
 }  // namespace grainwave::fluid

@@ -206,6 +206,8 @@ class FluidModel : public io::System {
   double capturing_coefficient_ = 1.2, sensor_threshold_ = 0.001;
   double h_min_ = 0;  ///< finest spacing (smallest over the axes)
   double sponge_width_ = 0, sponge_strength_ = 0;
+  /// On outflow edges relax only density and pressure (the velocity, e.g. a wake, leaves unforced).
+  bool sponge_thermodynamic_ = false;
   InitialCondition<Dim> initial_;
   std::unique_ptr<AdaptiveGrid<Dim>> grid_, good_;
   std::unique_ptr<ErkIntegrator> integrator_;
@@ -343,6 +345,7 @@ FluidModel<Dim>::FluidModel(const Scene& scene) {
   for (std::size_t k = 0; k < 16; ++k) initial_.quadrants[k / 4][k % 4] = quadrants[k];
   sponge_width_ = s.real("sponge_width");
   sponge_strength_ = s.real("sponge_strength");
+  sponge_thermodynamic_ = s.text("sponge_mode") == "thermodynamic";
   reynolds_ = s.real("reynolds");
   prandtl_ = s.real("prandtl");
   sutherland_s1_ = s.real("sutherland_s1");
@@ -1125,6 +1128,11 @@ void FluidModel<Dim>::add_sponge(std::size_t slot, double* out) {
   // within the distance w of a non-periodic edge, q_face the state held at that face (the initial
   // state at its centre). Outgoing waves, e.g. the acoustic pulse of an impulsive start, are
   // damped before they reach an edge that would reflect them.
+  //
+  // sponge_mode = "thermodynamic" relaxes only density and pressure on outflow edges
+  // (add_sponge_source): relaxing a wake's velocity to the free stream acts as a body force that
+  // reaches back to the body (on the Re 40 cylinder it moved the drag by 7% between a 48 D and a
+  // 96 D domain).
   const int bs = config_.block_size;
   const auto x0 = grid_->origin(grid_->key(slot));
   const auto h = grid_->spacing(grid_->key(slot).level);
@@ -1136,6 +1144,7 @@ void FluidModel<Dim>::add_sponge(std::size_t slot, double* out) {
   }
   if (!near) return;
   const std::size_t per_block = interior_at_.size();
+  const auto field = [&](int f) { return grid_->block(f, slot); };
   for (std::size_t p = 0; p < per_block; ++p) {
     const auto at = static_cast<std::size_t>(interior_at_[p]);
     std::size_t rest = p;
@@ -1150,8 +1159,12 @@ void FluidModel<Dim>::add_sponge(std::size_t slot, double* out) {
         const double ramp = 1 - d / sponge_width_;
         const double sigma = sponge_strength_ * ramp * ramp;
         const auto& ref = inflow_[au][static_cast<std::size_t>(side)];
-        for (int f = 0; f < kFields; ++f)
-          out[static_cast<std::size_t>(f) * per_block + p] -= sigma * (grid_->block(f, slot)[at] - ref[static_cast<std::size_t>(f)]);
+        const bool thermodynamic =
+            sponge_thermodynamic_ && boundary_[au][static_cast<std::size_t>(side)] == BoundaryKind::kOutflow;
+        Conserved<Dim> q{}, source{};
+        for (int f = 0; f < kFields; ++f) q[static_cast<std::size_t>(f)] = field(f)[at];
+        add_sponge_source<Dim>(q, ref, sigma, thermodynamic, source);
+        for (int f = 0; f < kFields; ++f) out[static_cast<std::size_t>(f) * per_block + p] += source[static_cast<std::size_t>(f)];
       }
     }
   }
@@ -1742,6 +1755,11 @@ void FluidSystem::declare(SceneSchema& schema) {
          "initial state there")
       .at_least(0);
   s.real("sponge_strength", 1.0, "largest relaxation rate of the sponge layers (at the edge)").at_least(0);
+  s.text("sponge_mode", "state",
+         "state: the sponge relaxes the whole state to the face's; thermodynamic: on outflow edges only density and "
+         "pressure (velocity unforced, so a wake or a body's displacement flow leaves freely); inflow edges always "
+         "relax the whole state")
+      .one_of({"state", "thermodynamic"});
   s.real("reynolds", 0.0, "acoustic Reynolds number Re_a; 0: inviscid (Euler, no viscous code runs)").at_least(0);
   s.real("prandtl", 0.72, "Prandtl number Pr").above(0);
   s.real("sutherland_s1", 110.4 / 300.0, "Sutherland constant S1 = S / T0 (air: 110.4 K / 300 K)").above(0);

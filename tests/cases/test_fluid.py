@@ -4,6 +4,7 @@ order, error control, conservation, 1 vs 2 ranks, restart, failures caught, stre
 import glob
 import math
 import os
+import re
 
 import h5py
 import numpy as np
@@ -131,6 +132,12 @@ def continue_past_t_end():
     grainwave("run", case("sod.toml"), "--set", "run.t_end=0.2", "--out", part, "--restart", part, check=0)
     a, b = read_fluid(last_output(straight)), read_fluid(last_output(part))
     expect(all(np.array_equal(a[k], b[k]) for k in ("rho", "u", "p")), "the continued run reaches t = 0.2 bitwise")
+    # Continued again with a finer output interval: outputs fall on its multiples after the restart.
+    grainwave("run", case("sod.toml"), "--set", "run.t_end=0.3", "--set", "output.interval=0.05", "--out", part,
+              "--restart", part, check=0)
+    times = [float(t) for t in re.findall(r'<Time Value="([^"]+)"', open(os.path.join(part, "fields.xmf")).read())]
+    expect(len(times) == 5 and abs(times[-2] - 0.25) < 1e-12 and abs(times[-1] - 0.3) < 1e-12,
+           f"outputs at the new interval after the restart (times {times})")
 
 
 def too_large_cfl_is_caught():

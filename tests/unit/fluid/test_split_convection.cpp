@@ -138,3 +138,31 @@ TEST(FluidBoundaries, SlipWallMirrorsAndReversesNormalMomentumOutflowCopiesInflo
     EXPECT_EQ(q[2][static_cast<std::size_t>(shape.index({last + k, g + 1}))], 3.0);
   }
 }
+
+TEST(FluidBoundaries, ThermodynamicSpongeRelaxesDensityAndPressureAndLeavesTheVelocity) {
+  const double gamma = 1.4, sigma = 0.7;
+  const auto face = gf::to_conserved<2>({1.0, {0.2, 0.0}, 1 / gamma}, gamma);
+  // A wake point: slower, turning, at the face's density and pressure: no source at all.
+  const auto wake = gf::to_conserved<2>({1.0, {0.12, -0.03}, 1 / gamma}, gamma);
+  gf::Conserved<2> source{};
+  gf::add_sponge_source<2>(wake, face, sigma, true, source);
+  for (const double s : source) EXPECT_EQ(s, 0.0);
+  // The whole-state sponge forces the same point towards the free stream.
+  gf::add_sponge_source<2>(wake, face, sigma, false, source);
+  EXPECT_NEAR(source[1], -sigma * (wake[1] - face[1]), 1e-15);
+  EXPECT_GT(source[1], 0.0);
+
+  // An acoustic disturbance (p', rho', u'): along the source, u stays, rho and p relax at sigma.
+  const gf::Primitive<2> w{1.02, {0.21, 0.01}, 1.03 / gamma};
+  const auto q = gf::to_conserved<2>(w, gamma);
+  source = {};
+  gf::add_sponge_source<2>(q, face, sigma, true, source);
+  const double dt = 1e-7;
+  gf::Conserved<2> next{};
+  for (std::size_t f = 0; f < q.size(); ++f) next[f] = q[f] + dt * source[f];
+  const auto after = gf::to_primitive<2>(next, gamma);
+  EXPECT_NEAR((after.u[0] - w.u[0]) / dt, 0.0, 1e-6);
+  EXPECT_NEAR((after.u[1] - w.u[1]) / dt, 0.0, 1e-6);
+  EXPECT_NEAR((after.rho - w.rho) / dt, -sigma * (w.rho - 1.0), 1e-6);
+  EXPECT_NEAR((after.p - w.p) / dt, -sigma * (w.p - 1 / gamma), 1e-6);
+}
