@@ -11,6 +11,14 @@
 //     exact there; for subsonic inflow it over-specifies (no characteristic treatment yet).
 //   - outflow: zero-gradient extrapolation of the conserved variables (transmissive; it
 //     reflects weakly, a characteristic treatment is not implemented yet).
+//   - no-slip walls (the wall on the edge point, as for the slip wall): the ghosts mirror the
+//     density and reverse every velocity component, so u is odd about the wall. Adiabatic: the
+//     temperature is even (no heat flux through the wall; with rho even and |u|^2 even the total
+//     energy simply mirrors). Isothermal at T_w: the pressure is even (dp/dn = 0, the boundary-
+//     layer approximation) and T_ghost = 2 T_w - T_mirror, so the central heat flux at the wall
+//     sees the wall temperature; rho_ghost = gamma p / T_ghost. The wall point itself is held at
+//     u = 0 (and T = T_w) by constrain_wall_point, applied to the state and to its time derivative.
+#include <algorithm>
 #include <array>
 #include <cstddef>
 #include <span>
@@ -20,14 +28,24 @@
 
 namespace grainwave::fluid {
 
-enum class BoundaryKind { kPeriodic, kSlipWall, kOutflow, kInflow };
+enum class BoundaryKind { kPeriodic, kSlipWall, kOutflow, kInflow, kNoSlipAdiabatic, kNoSlipIsothermal };
+
+inline bool is_no_slip(BoundaryKind kind) {
+  return kind == BoundaryKind::kNoSlipAdiabatic || kind == BoundaryKind::kNoSlipIsothermal;
+}
+
+/// Gas properties a no-slip wall's ghosts need.
+struct WallGas {
+  double gamma = 1.4;
+  double temperature = 1;  ///< T_w of an isothermal wall (T = gamma p / rho, the squared sound speed)
+};
 
 /// Fills the ghosts of one block beyond one edge (axis, high side or not) for the Dim + 2
 /// conserved fields. bs: interior points per axis, g: ghost layers; inflow: the conserved state
-/// of an inflow edge.
+/// of an inflow edge; wall: the gas of a no-slip wall.
 template <int Dim>
 void fill_edge_ghosts(std::span<double* const> fields, const wavelet::ArrayShape<Dim>& shape, int bs, int g, int axis,
-                      bool high, BoundaryKind kind, std::span<const double> inflow) {
+                      bool high, BoundaryKind kind, std::span<const double> inflow, const WallGas& wall = {}) {
   const std::ptrdiff_t stride = shape.stride(axis);
   const int edge = high ? g + bs - 1 : g;  // array coordinate of the edge point
   const int direction = high ? 1 : -1;
@@ -39,8 +57,27 @@ void fill_edge_ghosts(std::span<double* const> fields, const wavelet::ArrayShape
       for (std::size_t f = 0; f < fields.size(); ++f) fields[f][at] = inflow[f];
       continue;
     }
-    const int source = kind == BoundaryKind::kSlipWall ? edge - direction * k : edge;
+    const bool mirror = kind == BoundaryKind::kSlipWall || is_no_slip(kind);
+    const int source = mirror ? edge - direction * k : edge;
     const auto from = static_cast<std::ptrdiff_t>(at) + (source - i[static_cast<std::size_t>(axis)]) * stride;
+    if (kind == BoundaryKind::kNoSlipAdiabatic) {
+      fields[0][at] = fields[0][from];
+      for (std::size_t f = 1; f <= static_cast<std::size_t>(Dim); ++f) fields[f][at] = -fields[f][from];
+      fields[Dim + 1][at] = fields[Dim + 1][from];
+      continue;
+    }
+    if (kind == BoundaryKind::kNoSlipIsothermal) {
+      Conserved<Dim> q{};
+      for (std::size_t f = 0; f < q.size(); ++f) q[f] = fields[f][from];
+      auto w = to_primitive<Dim>(q, wall.gamma);
+      // Kept positive when the gas next to the wall is much hotter than twice the wall.
+      const double t_ghost = std::max(2 * wall.temperature - temperature(w.rho, w.p, wall.gamma), 0.1 * wall.temperature);
+      w.rho = wall.gamma * w.p / t_ghost;
+      for (auto& u : w.u) u = -u;
+      q = to_conserved<Dim>(w, wall.gamma);
+      for (std::size_t f = 0; f < q.size(); ++f) fields[f][at] = q[f];
+      continue;
+    }
     for (std::size_t f = 0; f < fields.size(); ++f) {
       const double v = fields[f][from];
       fields[f][at] = (kind == BoundaryKind::kSlipWall && f == static_cast<std::size_t>(axis) + 1) ? -v : v;
@@ -76,6 +113,16 @@ void add_sponge_source(const Conserved<Dim>& q, const Conserved<Dim>& face, doub
   source[0] += drho;
   for (std::size_t i = 1; i <= static_cast<std::size_t>(Dim); ++i) source[i] += drho * q[i] / rho;
   source[energy] += -sigma * internal_excess + 0.5 * momentum2 / (rho * rho) * drho;
+}
+
+/// Holds a no-slip wall point at rest (and an isothermal one at T_w). Applied alike to the state
+/// q (zero momentum; isothermal: E = rho T_w / (gamma (gamma - 1))) and to its time derivative
+/// (zero momentum rate; isothermal: dE/dt = T_w / (gamma (gamma - 1)) d rho/dt): both relations
+/// are linear in (rho, E) once the momentum is zero. The density evolves by the mass flux.
+template <int Dim>
+void constrain_wall_point(std::span<double> q, BoundaryKind kind, const WallGas& wall) {
+  for (std::size_t f = 1; f <= static_cast<std::size_t>(Dim); ++f) q[f] = 0;
+  if (kind == BoundaryKind::kNoSlipIsothermal) q[Dim + 1] = q[0] * wall.temperature / (wall.gamma * (wall.gamma - 1));
 }
 
 }  // namespace grainwave::fluid

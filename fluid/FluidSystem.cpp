@@ -186,6 +186,12 @@ class FluidModel : public io::System {
   void pack(std::span<double> y) const;
   void unpack(std::span<const double> y);
   void fill_boundary_ghosts();
+  /// Calls visit(p, kind) for each interior point p of block `slot` on a no-slip domain edge.
+  template <class Visit>
+  void for_each_wall_point(std::size_t slot, Visit&& visit) const;
+  /// Holds the no-slip wall points at rest: the state on the grid, or (rate) the RHS ydot.
+  void constrain_walls(std::span<double> ydot, bool rate);
+  bool touches_no_slip_wall(const std::array<double, Dim>& lo, const std::array<double, Dim>& hi) const;
   void layout_changed();
   std::array<double, 2> totals() const;  ///< global integrals of rho and E
   double cell_volume(int level) const;
@@ -209,6 +215,8 @@ class FluidModel : public io::System {
   /// On outflow edges relax only density and pressure (the velocity, e.g. a wake, leaves unforced).
   bool sponge_thermodynamic_ = false;
   InitialCondition<Dim> initial_;
+  bool no_slip_walls_ = false;
+  WallGas wall_gas_;
   std::unique_ptr<AdaptiveGrid<Dim>> grid_, good_;
   std::unique_ptr<ErkIntegrator> integrator_;
   RunStats stats_, good_stats_;
@@ -272,6 +280,8 @@ FluidModel<Dim>::FluidModel(const Scene& scene) {
   auto kind_of = [](const std::string& name) {
     return name == "periodic" ? BoundaryKind::kPeriodic
            : name == "slip_wall" ? BoundaryKind::kSlipWall
+           : name == "no_slip_wall" ? BoundaryKind::kNoSlipAdiabatic
+           : name == "isothermal_wall" ? BoundaryKind::kNoSlipIsothermal
            : name == "inflow"    ? BoundaryKind::kInflow
                                  : BoundaryKind::kOutflow;
   };
@@ -350,6 +360,15 @@ FluidModel<Dim>::FluidModel(const Scene& scene) {
   prandtl_ = s.real("prandtl");
   sutherland_s1_ = s.real("sutherland_s1");
   viscous_ = reynolds_ > 0;
+  wall_gas_ = {gamma_, s.real("wall_temperature")};
+  for (int a = 0; a < Dim; ++a)
+    for (int side = 0; side < 2; ++side)
+      if (is_no_slip(boundary_[static_cast<std::size_t>(a)][static_cast<std::size_t>(side)])) {
+        no_slip_walls_ = true;
+        if (!viscous_)
+          s.fail(side ? "boundary_high" : "boundary_low",
+                 "a no-slip wall needs viscosity (reynolds > 0); an inviscid run takes slip_wall");
+      }
   if (viscous_) config_.ghosts = std::max(config_.ghosts, kViscousReach);
   initial_.shear_amplitude = s.real("shear_amplitude");
   if (initial_.kind == InitialKind::kShearWave) {
@@ -418,6 +437,7 @@ FluidModel<Dim>::FluidModel(const Scene& scene) {
     grid_->fill_ghosts();
   }
   layout_changed();
+  constrain_walls({}, false);
   fill_boundary_ghosts();
   const auto [mass, energy] = totals();
   stats_.mass0 = mass;
@@ -533,11 +553,63 @@ void FluidModel<Dim>::fill_boundary_ghosts() {
       const auto au = static_cast<std::size_t>(a);
       if (config_.periodic[au]) continue;
       const auto blocks_along = static_cast<std::uint32_t>(config_.roots[au]) << key.level;
-      if (c[au] == 0) fill_edge_ghosts<Dim>(fields, shape, bs, g, a, false, boundary_[au][0], inflow_[au][0]);
+      if (c[au] == 0) fill_edge_ghosts<Dim>(fields, shape, bs, g, a, false, boundary_[au][0], inflow_[au][0], wall_gas_);
       if (c[au] + 1 == blocks_along)
-        fill_edge_ghosts<Dim>(fields, shape, bs, g, a, true, boundary_[au][1], inflow_[au][1]);
+        fill_edge_ghosts<Dim>(fields, shape, bs, g, a, true, boundary_[au][1], inflow_[au][1], wall_gas_);
     }
   }
+}
+
+template <int Dim>
+template <class Visit>
+void FluidModel<Dim>::for_each_wall_point(std::size_t slot, Visit&& visit) const {
+  const auto key = grid_->key(slot);
+  const auto c = key.coords();
+  const int bs = config_.block_size;
+  for (int a = 0; a < Dim; ++a) {
+    const auto au = static_cast<std::size_t>(a);
+    const auto blocks_along = static_cast<std::uint32_t>(config_.roots[au]) << key.level;
+    for (int side = 0; side < 2; ++side) {
+      const BoundaryKind kind = boundary_[au][static_cast<std::size_t>(side)];
+      if (!is_no_slip(kind) || (side ? c[au] + 1 != blocks_along : c[au] != 0)) continue;
+      const int wall_index = side ? bs - 1 : 0;  // the edge point along axis a
+      for (std::size_t p = 0; p < interior_at_.size(); ++p) {
+        std::size_t rest = p;
+        for (int b = 0; b < a; ++b) rest /= static_cast<std::size_t>(bs);
+        if (static_cast<int>(rest % static_cast<std::size_t>(bs)) == wall_index) visit(p, kind);
+      }
+    }
+  }
+}
+
+template <int Dim>
+void FluidModel<Dim>::constrain_walls(std::span<double> ydot, bool rate) {
+  if (!no_slip_walls_) return;
+  const std::size_t per_block = interior_at_.size();
+  for (std::size_t s = 0; s < grid_->local_blocks(); ++s)
+    for_each_wall_point(s, [&](std::size_t p, BoundaryKind kind) {
+      Conserved<Dim> q{};
+      for (int f = 0; f < kFields; ++f) {
+        const auto fu = static_cast<std::size_t>(f);
+        q[fu] = rate ? ydot[(s * kFields + fu) * per_block + p] : grid_->block(f, s)[static_cast<std::size_t>(interior_at_[p])];
+      }
+      constrain_wall_point<Dim>(q, kind, wall_gas_);
+      for (int f = 0; f < kFields; ++f) {
+        const auto fu = static_cast<std::size_t>(f);
+        (rate ? ydot[(s * kFields + fu) * per_block + p] : grid_->block(f, s)[static_cast<std::size_t>(interior_at_[p])]) = q[fu];
+      }
+    });
+}
+
+template <int Dim>
+bool FluidModel<Dim>::touches_no_slip_wall(const std::array<double, Dim>& lo, const std::array<double, Dim>& hi) const {
+  for (int a = 0; a < Dim; ++a) {
+    const auto au = static_cast<std::size_t>(a);
+    const double h = (hi[au] - lo[au]) / (config_.block_size - 1);  // at most the block's spacing
+    if (is_no_slip(boundary_[au][0]) && lo[au] - config_.lo[au] < 0.5 * h) return true;
+    if (is_no_slip(boundary_[au][1]) && config_.hi[au] - hi[au] < 1.5 * h) return true;
+  }
+  return false;
 }
 
 template <int Dim>
@@ -620,6 +692,7 @@ int FluidModel<Dim>::evaluate_rhs(std::span<const double> y, std::span<double> y
       add_penalization(s, ydot.data() + s * kFields * per_block);
     }
   }
+  constrain_walls(ydot, true);
   stats_.point_rhs += static_cast<double>(grid_->local_blocks() * per_block);
   return 0;
 }
@@ -704,9 +777,13 @@ bool FluidModel<Dim>::in_control_volume(const std::array<double, Dim>& lo, const
 
 template <int Dim>
 wavelet::ForcedRegion<Dim> FluidModel<Dim>::forced_region(double t) const {
-  if (!penalized()) return {};
+  // Blocks on a no-slip wall stay at the finest level: the boundary layer needs it, and the wall
+  // point of a high edge (the last point, hi - h) would move if its block changed level.
+  if (!penalized() && !no_slip_walls_) return {};
   return [this, t](const std::array<double, Dim>& lo, const std::array<double, Dim>& hi) {
-    return near_interface(lo, hi, t) || (penalization_.refine_control_volume && in_control_volume(lo, hi, t));
+    if (no_slip_walls_ && touches_no_slip_wall(lo, hi)) return true;
+    return penalized() &&
+           (near_interface(lo, hi, t) || (penalization_.refine_control_volume && in_control_volume(lo, hi, t)));
   };
 }
 
@@ -1291,6 +1368,7 @@ void FluidModel<Dim>::advance(double t, double dt) {
     ScopedTimer timer(timers_, "refine");
     grid_->adapt(threshold_, wavelet::AdaptPass::kRefine, forced_region(t + dt));
     layout_changed();
+    constrain_walls({}, false);  // points a refinement placed on a wall were interpolated
   }
   if (penalized()) {
     // Bodies frozen over the step at their mid-step position (leap-frog, 002 §2.4.3); the stiff
@@ -1697,7 +1775,7 @@ void FluidModel<Dim>::report(io::Json& counts, io::Json& metrics, double step_wa
   }
 }
 
-const std::vector<std::string> kBoundaries = {"periodic", "slip_wall", "outflow", "inflow"};
+const std::vector<std::string> kBoundaries = {"periodic", "slip_wall", "no_slip_wall", "isothermal_wall", "outflow", "inflow"};
 
 }  // namespace
 
@@ -1711,11 +1789,13 @@ void FluidSystem::declare(SceneSchema& schema) {
   s.reals("hi", std::vector<double>{1, 1, 1}, "upper corner of the domain").of_length(3);
   s.integers("roots", std::vector<std::int64_t>{1, 1, 1}, "root blocks per axis").of_length(3).in_range(1, 64);
   s.texts("boundary_low", std::vector<std::string>{"outflow", "periodic", "periodic"},
-          "per axis, low side: periodic, slip_wall (wall on x = lo), outflow (zero gradient) or inflow (the initial state at the face, held fixed)")
+          "per axis, low side: periodic, slip_wall (wall on x = lo), no_slip_wall (adiabatic), isothermal_wall (no-slip at "
+          "wall_temperature), outflow (zero gradient) or inflow (the initial state at the face, held fixed)")
       .one_of(kBoundaries)
       .of_length(3);
   s.texts("boundary_high", std::vector<std::string>{"outflow", "periodic", "periodic"},
-          "per axis, high side: periodic, slip_wall (wall on the last point, hi - h), outflow or inflow")
+          "per axis, high side: periodic, slip_wall (wall on the last point, hi - h), no_slip_wall, isothermal_wall, "
+          "outflow or inflow")
       .one_of(kBoundaries)
       .of_length(3);
   s.integer("block_size", 16, "collocation points per block and axis (even)").in_range(8, wavelet::kMaxBlockSize);
@@ -1762,6 +1842,7 @@ void FluidSystem::declare(SceneSchema& schema) {
       .one_of({"state", "thermodynamic"});
   s.real("reynolds", 0.0, "acoustic Reynolds number Re_a; 0: inviscid (Euler, no viscous code runs)").at_least(0);
   s.real("prandtl", 0.72, "Prandtl number Pr").above(0);
+  s.real("wall_temperature", 1.0, "temperature T = gamma p / rho of isothermal_wall boundaries (1: the reference)").above(0);
   s.real("sutherland_s1", 110.4 / 300.0, "Sutherland constant S1 = S / T0 (air: 110.4 K / 300 K)").above(0);
   s.real("shear_amplitude", 1e-3, "shear_wave: amplitude A of u_y = A sin(2 pi x / L_x)").above(0);
   s.reals("density_wave", std::vector<double>{0, 0},

@@ -6,6 +6,7 @@ launcher, space separated) and GRAINWAVE_WORK (a scratch folder for this test).
 Exit code 0 passes, 77 skips (with a message saying why), anything else fails.
 """
 import json
+import math
 import os
 import shutil
 import subprocess
@@ -78,3 +79,45 @@ def main(tests):
         fail(f"no test {name}; have {sorted(tests)}")
     result = tests[name]()
     sys.exit(result or 0)
+
+
+def read_points(folder, *fields):
+    """x, y and the named fields at every point of a 2D output's last file (XDMF block geometry)."""
+    import glob
+    import xml.etree.ElementTree as ElementTree
+
+    import h5py
+    import numpy as np
+    path = sorted(glob.glob(os.path.join(folder, "output_*.h5")))[-1]
+    grids = [g for g in ElementTree.parse(path.replace(".h5", ".fluid.xmf")).getroot().iter("Grid")
+             if g.get("GridType") == "Uniform"]
+    with h5py.File(path, "r") as f:
+        values = [np.array(f["fluid"][k]) for k in fields]
+    columns = [[] for _ in range(2 + len(fields))]
+    for b, grid in enumerate(grids):
+        ny, nx = (int(n) for n in grid.find("Topology").get("Dimensions").split())
+        origin, spacing = (list(map(float, item.text.split())) for item in grid.find("Geometry"))  # y, x
+        y, x = np.meshgrid(origin[0] + spacing[0] * np.arange(ny), origin[1] + spacing[1] * np.arange(nx), indexing="ij")
+        columns[0].append(x.ravel())
+        columns[1].append(y.ravel())
+        for k, v in enumerate(values):
+            columns[2 + k].append(v[b])
+    return [np.concatenate(c) for c in columns]
+
+
+def profile_along_y(folder, field, x=0.0):
+    """(y, value) of a 2D output's field on the grid line x = const."""
+    import numpy as np
+    xs, ys, values = read_points(folder, field)
+    on_line = np.abs(xs - x) < 1e-12
+    order = np.argsort(ys[on_line])
+    return np.column_stack([ys[on_line][order], values[on_line][order]])
+
+
+def erf_inverse(z):
+    """The inverse error function, by bisection."""
+    lo, hi = -6.0, 6.0
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if math.erf(mid) < z else (lo, mid)
+    return 0.5 * (lo + hi)

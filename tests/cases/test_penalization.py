@@ -3,15 +3,12 @@ fluid/Penalization.hpp): the reflected-shock pressure at a penalized wall, the f
 restart, 1 vs 2 ranks and bad body input (short runs), and the published drag, recirculation
 length, Strouhal number, Galilean invariance and control-volume cross-check (long runs, validate)."""
 import csv
-import glob
 import math
 import os
-import xml.etree.ElementTree as ElementTree
 
-import h5py
 import numpy as np
 
-from gwtest import case, expect, grainwave, main, run_scene as run, scratch
+from gwtest import case, erf_inverse, expect, grainwave, main, profile_along_y, read_points, run_scene as run, scratch
 
 # A small, coarse cylinder run (D / 16 at the finest level) for the mechanics, not for accuracy.
 SMALL_CYLINDER = ["fluid.max_level=2", "fluid.lo=[-8.0,-8.0,0.0]", "fluid.hi=[16.0,8.0,1.0]", "fluid.roots=[3,2,1]",
@@ -68,41 +65,6 @@ def penalized_one_and_two_ranks():
     diff = np.max(np.abs(a["Fx"] - b["Fx"])) / np.max(np.abs(a["Fx"]))
     expect(runs[2][0]["ranks"] == 2 and len(a["t"]) == len(b["t"]), "same number of steps on 2 ranks")
     expect(diff <= 1e-9, f"the drag history agrees on 1 and 2 ranks (relative difference {diff:.2e})")
-
-
-def read_points(folder, *fields):
-    """x, y and the named fields at every point of a 2D output's last file (XDMF block geometry)."""
-    path = sorted(glob.glob(os.path.join(folder, "output_*.h5")))[-1]
-    grids = [g for g in ElementTree.parse(path.replace(".h5", ".fluid.xmf")).getroot().iter("Grid")
-             if g.get("GridType") == "Uniform"]
-    with h5py.File(path, "r") as f:
-        values = [np.array(f["fluid"][k]) for k in fields]
-    columns = [[] for _ in range(2 + len(fields))]
-    for b, grid in enumerate(grids):
-        ny, nx = (int(n) for n in grid.find("Topology").get("Dimensions").split())
-        origin, spacing = (list(map(float, item.text.split())) for item in grid.find("Geometry"))  # y, x
-        y, x = np.meshgrid(origin[0] + spacing[0] * np.arange(ny), origin[1] + spacing[1] * np.arange(nx), indexing="ij")
-        columns[0].append(x.ravel())
-        columns[1].append(y.ravel())
-        for k, v in enumerate(values):
-            columns[2 + k].append(v[b])
-    return [np.concatenate(c) for c in columns]
-
-
-def profile_along_y(folder, field, x=0.0):
-    """(y, value) of a 2D output's field on the grid line x = const."""
-    xs, ys, values = read_points(folder, field)
-    on_line = np.abs(xs - x) < 1e-12
-    order = np.argsort(ys[on_line])
-    return np.column_stack([ys[on_line][order], values[on_line][order]])
-
-
-def erf_inverse(z):
-    lo, hi = -6.0, 6.0
-    for _ in range(60):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if math.erf(mid) < z else (lo, mid)
-    return 0.5 * (lo + hi)
 
 
 def penalized_wall_position():
