@@ -10,7 +10,20 @@
 //     behind an incoming shock). All characteristics enter through a supersonic inflow, so this is
 //     exact there; for subsonic inflow it over-specifies (no characteristic treatment yet).
 //   - outflow: zero-gradient extrapolation of the conserved variables (transmissive; it
-//     reflects weakly, a characteristic treatment is not implemented yet).
+//     reflects part of an acoustic wave).
+//   - characteristic_outflow: non-reflecting, after the locally one-dimensional characteristic
+//     analysis of Thompson (JCP 68, 1987) and Poinsot & Lele (JCP 101, 1992) with the pressure
+//     relaxation of Rudy & Strikwerda (JCP 36, 1980), imposed through the ghosts. Linearised
+//     about the edge point b (rho, u_n, c), the characteristic variables along the outward
+//     normal are w+ = p + rho c u_n (speed u_n + c), w- = p - rho c u_n (u_n - c), the entropy
+//     rho - p/c^2 and the tangential velocities (u_n). Outgoing ones keep their gradient: the
+//     ghosts extrapolate them linearly from b and its inner neighbour. The incoming acoustic one
+//     gets the gradient that makes its amplitude L- = (u_n - c) dw-/dn = K (p_b - p_far),
+//     K = sigma (1 - M^2) c / L_domain: a slow pull of the edge pressure towards the far field
+//     that keeps the mean state from drifting while passing waves leave (sigma -> 0: perfectly
+//     non-reflecting but ill-posed; sigma ~ 0.25 is the usual compromise). At supersonic outflow
+//     everything is extrapolated; where gas enters (u_n < 0) entropy and tangential velocity are
+//     held at their edge values.
 //   - no-slip walls (the wall on the edge point, as for the slip wall): the ghosts mirror the
 //     density and reverse every velocity component, so u is odd about the wall. Adiabatic: the
 //     temperature is even (no heat flux through the wall; with rho even and |u|^2 even the total
@@ -20,6 +33,7 @@
 //     u = 0 (and T = T_w) by constrain_wall_point, applied to the state and to its time derivative.
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstddef>
 #include <span>
 
@@ -28,24 +42,57 @@
 
 namespace grainwave::fluid {
 
-enum class BoundaryKind { kPeriodic, kSlipWall, kOutflow, kInflow, kNoSlipAdiabatic, kNoSlipIsothermal };
+enum class BoundaryKind { kPeriodic, kSlipWall, kOutflow, kInflow, kNoSlipAdiabatic, kNoSlipIsothermal, kCharacteristic };
 
 inline bool is_no_slip(BoundaryKind kind) {
   return kind == BoundaryKind::kNoSlipAdiabatic || kind == BoundaryKind::kNoSlipIsothermal;
 }
 
-/// Gas properties a no-slip wall's ghosts need.
-struct WallGas {
+/// What the ghosts of walls and characteristic outflows need beyond the state.
+struct EdgeGas {
   double gamma = 1.4;
   double temperature = 1;  ///< T_w of an isothermal wall (T = gamma p / rho, the squared sound speed)
+  double outflow_sigma = 0.25;  ///< characteristic outflow: pressure relaxation sigma
+  double length = 1;            ///< characteristic outflow: domain length along the edge's normal
+  double spacing = 0;           ///< the block's spacing along the normal
 };
+
+/// Ghost values beyond a characteristic outflow edge (see the header): `edge` and `inner` are
+/// the primitives at the edge point and its inner neighbour, `far` the far-field pressure,
+/// `axis` the normal, `outward` +1 on a high edge and -1 on a low one, k the ghost layer.
+template <int Dim>
+Primitive<Dim> characteristic_ghost(const Primitive<Dim>& edge, const Primitive<Dim>& inner, double far, int axis,
+                                    int outward, int k, const EdgeGas& gas) {
+  const auto n = static_cast<std::size_t>(axis);
+  const double c = std::sqrt(gas.gamma * edge.p / edge.rho), impedance = edge.rho * c;
+  const double un = outward * edge.u[n], un_inner = outward * inner.u[n];
+  const double w_out = edge.p + impedance * un, w_out_inner = inner.p + impedance * un_inner;
+  const double w_in = edge.p - impedance * un, w_in_inner = inner.p - impedance * un_inner;
+  const double entropy = edge.rho - edge.p / (c * c), entropy_inner = inner.rho - inner.p / (c * c);
+  const double layers = k;
+  const double w_out_ghost = w_out + layers * (w_out - w_out_inner);
+  double w_in_ghost = w_in + layers * (w_in - w_in_inner);
+  if (un < c) {
+    const double mach = un / c;
+    const double relaxation = gas.outflow_sigma * (1 - mach * mach) * c / gas.length;
+    w_in_ghost = w_in + layers * gas.spacing * relaxation * (edge.p - far) / (un - c);
+  }
+  const bool leaving = un > 0;
+  Primitive<Dim> ghost;
+  ghost.p = 0.5 * (w_out_ghost + w_in_ghost);
+  ghost.rho = (leaving ? entropy + layers * (entropy - entropy_inner) : entropy) + ghost.p / (c * c);
+  for (std::size_t a = 0; a < static_cast<std::size_t>(Dim); ++a)
+    ghost.u[a] = leaving ? edge.u[a] + layers * (edge.u[a] - inner.u[a]) : edge.u[a];
+  ghost.u[n] = outward * (w_out_ghost - w_in_ghost) / (2 * impedance);
+  return ghost;
+}
 
 /// Fills the ghosts of one block beyond one edge (axis, high side or not) for the Dim + 2
 /// conserved fields. bs: interior points per axis, g: ghost layers; inflow: the conserved state
 /// of an inflow edge; wall: the gas of a no-slip wall.
 template <int Dim>
 void fill_edge_ghosts(std::span<double* const> fields, const wavelet::ArrayShape<Dim>& shape, int bs, int g, int axis,
-                      bool high, BoundaryKind kind, std::span<const double> inflow, const WallGas& wall = {}) {
+                      bool high, BoundaryKind kind, std::span<const double> inflow, const EdgeGas& wall = {}) {
   const std::ptrdiff_t stride = shape.stride(axis);
   const int edge = high ? g + bs - 1 : g;  // array coordinate of the edge point
   const int direction = high ? 1 : -1;
@@ -55,6 +102,22 @@ void fill_edge_ghosts(std::span<double* const> fields, const wavelet::ArrayShape
     if (k <= 0) continue;
     if (kind == BoundaryKind::kInflow) {
       for (std::size_t f = 0; f < fields.size(); ++f) fields[f][at] = inflow[f];
+      continue;
+    }
+    if (kind == BoundaryKind::kCharacteristic) {
+      const auto primitive_at = [&](std::ptrdiff_t index) {
+        Conserved<Dim> q{};
+        for (std::size_t f = 0; f < q.size(); ++f) q[f] = fields[f][index];
+        return to_primitive<Dim>(q, wall.gamma);
+      };
+      const auto edge_at = static_cast<std::ptrdiff_t>(at) + (edge - i[static_cast<std::size_t>(axis)]) * stride;
+      Conserved<Dim> far_state{};
+      for (std::size_t f = 0; f < far_state.size(); ++f) far_state[f] = inflow[f];
+      const double far = to_primitive<Dim>(far_state, wall.gamma).p;
+      const auto ghost = to_conserved<Dim>(
+          characteristic_ghost<Dim>(primitive_at(edge_at), primitive_at(edge_at - direction * stride), far, axis, direction, k, wall),
+          wall.gamma);
+      for (std::size_t f = 0; f < ghost.size(); ++f) fields[f][at] = ghost[f];
       continue;
     }
     const bool mirror = kind == BoundaryKind::kSlipWall || is_no_slip(kind);
@@ -120,7 +183,7 @@ void add_sponge_source(const Conserved<Dim>& q, const Conserved<Dim>& face, doub
 /// (zero momentum rate; isothermal: dE/dt = T_w / (gamma (gamma - 1)) d rho/dt): both relations
 /// are linear in (rho, E) once the momentum is zero. The density evolves by the mass flux.
 template <int Dim>
-void constrain_wall_point(std::span<double> q, BoundaryKind kind, const WallGas& wall) {
+void constrain_wall_point(std::span<double> q, BoundaryKind kind, const EdgeGas& wall) {
   for (std::size_t f = 1; f <= static_cast<std::size_t>(Dim); ++f) q[f] = 0;
   if (kind == BoundaryKind::kNoSlipIsothermal) q[Dim + 1] = q[0] * wall.temperature / (wall.gamma * (wall.gamma - 1));
 }

@@ -36,7 +36,7 @@ std::array<double, Dim> head(const std::vector<double>& v) {
   return out;
 }
 
-enum class InitialKind { kUniform, kRiemann, kShock, kVortex, kQuadrants, kShearWave };
+enum class InitialKind { kUniform, kRiemann, kShock, kVortex, kQuadrants, kShearWave, kAcousticPulse };
 
 /// The initial state and, where one exists, the exact solution at time t.
 template <int Dim>
@@ -50,6 +50,7 @@ struct InitialCondition {
   double shear_amplitude = 1e-3, shear_decay = 0;  ///< shear wave: amplitude, exact decay rate k^2 / Re_a
   std::array<double, 2> density_wave{};          ///< amplitude, wavenumber on the right state (Shu-Osher)
   std::array<std::array<double, 4>, 4> quadrants{};  ///< (rho, u, v, p) of the four 2D quadrants
+  double pulse_amplitude = 1e-3, pulse_width = 0.05;  ///< acoustic pulse: p'/p, Gaussian half-width
 
   double along_normal(const std::array<double, Dim>& x) const {
     double s = 0;
@@ -72,7 +73,7 @@ struct InitialCondition {
   }
   bool has_exact() const {
     return (kind == InitialKind::kRiemann && density_wave[0] == 0) || kind == InitialKind::kVortex ||
-           kind == InitialKind::kUniform || kind == InitialKind::kShearWave;
+           kind == InitialKind::kUniform || kind == InitialKind::kShearWave || kind == InitialKind::kAcousticPulse;
   }
 
   Primitive<Dim> at(const std::array<double, Dim>& x, double t) const {
@@ -88,6 +89,18 @@ struct InitialCondition {
         if (t <= 0) return with_normal_velocity(s < 0 ? left : right);
         const ExactRiemannSolver solver(left, right, gamma);
         return with_normal_velocity(solver.sample(s / t));
+      }
+      case InitialKind::kAcousticPulse: {
+        // A plane sound pulse in the left state, moving along +normal at U + c: p' = A p g,
+        // u_n' = p' / (rho c), rho' = p' / c^2, g Gaussian. Linear acoustics: exact to O(A^2).
+        auto w = with_normal_velocity(left);
+        const double c = std::sqrt(gamma * left.p / left.rho);
+        const double s = (along_normal(x) - (left.u + c) * t) / pulse_width;
+        const double pressure = pulse_amplitude * left.p * std::exp(-s * s);
+        w.p += pressure;
+        w.rho += pressure / (c * c);
+        for (int a = 0; a < Dim; ++a) w.u[static_cast<std::size_t>(a)] += pressure / (left.rho * c) * normal[static_cast<std::size_t>(a)];
+        return w;
       }
       case InitialKind::kShock:  // moves along +normal into the gas ahead
         return with_normal_velocity(along_normal(x) > 0 ? ahead_of_shock() : behind_shock());
@@ -216,7 +229,7 @@ class FluidModel : public io::System {
   bool sponge_thermodynamic_ = false;
   InitialCondition<Dim> initial_;
   bool no_slip_walls_ = false;
-  WallGas wall_gas_;
+  EdgeGas wall_gas_;
   std::unique_ptr<AdaptiveGrid<Dim>> grid_, good_;
   std::unique_ptr<ErkIntegrator> integrator_;
   RunStats stats_, good_stats_;
@@ -283,6 +296,7 @@ FluidModel<Dim>::FluidModel(const Scene& scene) {
            : name == "no_slip_wall" ? BoundaryKind::kNoSlipAdiabatic
            : name == "isothermal_wall" ? BoundaryKind::kNoSlipIsothermal
            : name == "inflow"    ? BoundaryKind::kInflow
+           : name == "characteristic_outflow" ? BoundaryKind::kCharacteristic
                                  : BoundaryKind::kOutflow;
   };
   for (int a = 0; a < Dim; ++a) {
@@ -327,6 +341,7 @@ FluidModel<Dim>::FluidModel(const Scene& scene) {
                   : initial == "vortex" ? InitialKind::kVortex
                   : initial == "quadrants" ? InitialKind::kQuadrants
                   : initial == "shear_wave" ? InitialKind::kShearWave
+                  : initial == "acoustic_pulse" ? InitialKind::kAcousticPulse
                                         : InitialKind::kUniform;
   initial_.gamma = gamma_;
   const auto& l = s.reals("left");
@@ -360,7 +375,9 @@ FluidModel<Dim>::FluidModel(const Scene& scene) {
   prandtl_ = s.real("prandtl");
   sutherland_s1_ = s.real("sutherland_s1");
   viscous_ = reynolds_ > 0;
-  wall_gas_ = {gamma_, s.real("wall_temperature")};
+  wall_gas_.gamma = gamma_;
+  wall_gas_.temperature = s.real("wall_temperature");
+  wall_gas_.outflow_sigma = s.real("outflow_relaxation");
   for (int a = 0; a < Dim; ++a)
     for (int side = 0; side < 2; ++side)
       if (is_no_slip(boundary_[static_cast<std::size_t>(a)][static_cast<std::size_t>(side)])) {
@@ -371,6 +388,8 @@ FluidModel<Dim>::FluidModel(const Scene& scene) {
       }
   if (viscous_) config_.ghosts = std::max(config_.ghosts, kViscousReach);
   initial_.shear_amplitude = s.real("shear_amplitude");
+  initial_.pulse_amplitude = s.real("pulse_amplitude");
+  initial_.pulse_width = s.real("pulse_width");
   if (initial_.kind == InitialKind::kShearWave) {
     if (Dim < 2) s.fail("initial", "the shear wave needs dimension 2 or 3");
     const double k = 2 * std::numbers::pi / initial_.length[0];
@@ -553,9 +572,12 @@ void FluidModel<Dim>::fill_boundary_ghosts() {
       const auto au = static_cast<std::size_t>(a);
       if (config_.periodic[au]) continue;
       const auto blocks_along = static_cast<std::uint32_t>(config_.roots[au]) << key.level;
-      if (c[au] == 0) fill_edge_ghosts<Dim>(fields, shape, bs, g, a, false, boundary_[au][0], inflow_[au][0], wall_gas_);
+      auto gas = wall_gas_;
+      gas.length = config_.hi[au] - config_.lo[au];
+      gas.spacing = grid_->spacing(key.level)[au];
+      if (c[au] == 0) fill_edge_ghosts<Dim>(fields, shape, bs, g, a, false, boundary_[au][0], inflow_[au][0], gas);
       if (c[au] + 1 == blocks_along)
-        fill_edge_ghosts<Dim>(fields, shape, bs, g, a, true, boundary_[au][1], inflow_[au][1], wall_gas_);
+        fill_edge_ghosts<Dim>(fields, shape, bs, g, a, true, boundary_[au][1], inflow_[au][1], gas);
     }
   }
 }
@@ -1237,7 +1259,8 @@ void FluidModel<Dim>::add_sponge(std::size_t slot, double* out) {
         const double sigma = sponge_strength_ * ramp * ramp;
         const auto& ref = inflow_[au][static_cast<std::size_t>(side)];
         const bool thermodynamic =
-            sponge_thermodynamic_ && boundary_[au][static_cast<std::size_t>(side)] == BoundaryKind::kOutflow;
+            sponge_thermodynamic_ && (boundary_[au][static_cast<std::size_t>(side)] == BoundaryKind::kOutflow ||
+                                      boundary_[au][static_cast<std::size_t>(side)] == BoundaryKind::kCharacteristic);
         Conserved<Dim> q{}, source{};
         for (int f = 0; f < kFields; ++f) q[static_cast<std::size_t>(f)] = field(f)[at];
         add_sponge_source<Dim>(q, ref, sigma, thermodynamic, source);
@@ -1775,7 +1798,8 @@ void FluidModel<Dim>::report(io::Json& counts, io::Json& metrics, double step_wa
   }
 }
 
-const std::vector<std::string> kBoundaries = {"periodic", "slip_wall", "no_slip_wall", "isothermal_wall", "outflow", "inflow"};
+const std::vector<std::string> kBoundaries = {"periodic",       "slip_wall", "no_slip_wall", "isothermal_wall",
+                                              "outflow",        "inflow",    "characteristic_outflow"};
 
 }  // namespace
 
@@ -1790,12 +1814,13 @@ void FluidSystem::declare(SceneSchema& schema) {
   s.integers("roots", std::vector<std::int64_t>{1, 1, 1}, "root blocks per axis").of_length(3).in_range(1, 64);
   s.texts("boundary_low", std::vector<std::string>{"outflow", "periodic", "periodic"},
           "per axis, low side: periodic, slip_wall (wall on x = lo), no_slip_wall (adiabatic), isothermal_wall (no-slip at "
-          "wall_temperature), outflow (zero gradient) or inflow (the initial state at the face, held fixed)")
+          "wall_temperature), outflow (zero gradient), characteristic_outflow (non-reflecting, pressure relaxed to the "
+          "face's) or inflow (the initial state at the face, held fixed)")
       .one_of(kBoundaries)
       .of_length(3);
   s.texts("boundary_high", std::vector<std::string>{"outflow", "periodic", "periodic"},
           "per axis, high side: periodic, slip_wall (wall on the last point, hi - h), no_slip_wall, isothermal_wall, "
-          "outflow or inflow")
+          "outflow, characteristic_outflow or inflow")
       .one_of(kBoundaries)
       .of_length(3);
   s.integer("block_size", 16, "collocation points per block and axis (even)").in_range(8, wavelet::kMaxBlockSize);
@@ -1817,8 +1842,9 @@ void FluidSystem::declare(SceneSchema& schema) {
   s.real("capturing_coefficient", 1.2, "k of the dissipation flux k lambda s (q_{i+1} - q_i)").at_least(0);
   s.real("sensor_threshold", 0.001, "psi_0: no dissipation where the sensor is below it").at_least(0);
   s.text("initial", "uniform", "uniform, riemann (two states across a plane), shock (planar shock of shock_mach) "
-                               "vortex (isentropic vortex), quadrants (2D Riemann problem) or shear_wave (viscous decay)")
-      .one_of({"uniform", "riemann", "shock", "vortex", "quadrants", "shear_wave"});
+                               "vortex (isentropic vortex), quadrants (2D Riemann problem), shear_wave (viscous decay) "
+                               "or acoustic_pulse (a plane sound pulse in the left state, moving along normal)")
+      .one_of({"uniform", "riemann", "shock", "vortex", "quadrants", "shear_wave", "acoustic_pulse"});
   s.reals("left", std::vector<double>{1, 0, 1}, "rho, normal velocity, p on the side behind the normal (uniform: "
                                                  "the state)")
       .of_length(3);
@@ -1842,8 +1868,14 @@ void FluidSystem::declare(SceneSchema& schema) {
       .one_of({"state", "thermodynamic"});
   s.real("reynolds", 0.0, "acoustic Reynolds number Re_a; 0: inviscid (Euler, no viscous code runs)").at_least(0);
   s.real("prandtl", 0.72, "Prandtl number Pr").above(0);
+  s.real("outflow_relaxation", 0.25,
+         "characteristic_outflow: sigma of the pressure relaxation K = sigma (1 - M^2) c / L (0: perfectly "
+         "non-reflecting, the mean pressure may drift)")
+      .at_least(0);
   s.real("wall_temperature", 1.0, "temperature T = gamma p / rho of isothermal_wall boundaries (1: the reference)").above(0);
   s.real("sutherland_s1", 110.4 / 300.0, "Sutherland constant S1 = S / T0 (air: 110.4 K / 300 K)").above(0);
+  s.real("pulse_amplitude", 1e-3, "acoustic_pulse: peak p'/p of the sound pulse").above(0);
+  s.real("pulse_width", 0.05, "acoustic_pulse: Gaussian half-width of the pulse (along normal)").above(0);
   s.real("shear_amplitude", 1e-3, "shear_wave: amplitude A of u_y = A sin(2 pi x / L_x)").above(0);
   s.reals("density_wave", std::vector<double>{0, 0},
           "riemann: density of the right state times 1 + a sin(k s), s the distance from the plane (Shu-Osher)")
