@@ -24,6 +24,10 @@
 //     non-reflecting but ill-posed; sigma ~ 0.25 is the usual compromise). At supersonic outflow
 //     everything is extrapolated; where gas enters (u_n < 0) entropy and tangential velocity are
 //     held at their edge values.
+//   - characteristic_inflow: the same analysis on an edge where gas enters: the incoming
+//     characteristics (entropy, tangential velocity, the inward acoustic wave) take the face's
+//     far-field state, the outgoing acoustic wave leaves (the plain inflow fixes all of them and
+//     reflects it). At supersonic inflow this is the plain inflow.
 //   - no-slip walls (the wall on the edge point, as for the slip wall): the ghosts mirror the
 //     density and reverse every velocity component, so u is odd about the wall. Adiabatic: the
 //     temperature is even (no heat flux through the wall; with rho even and |u|^2 even the total
@@ -42,7 +46,8 @@
 
 namespace grainwave::fluid {
 
-enum class BoundaryKind { kPeriodic, kSlipWall, kOutflow, kInflow, kNoSlipAdiabatic, kNoSlipIsothermal, kCharacteristic };
+enum class BoundaryKind { kPeriodic, kSlipWall, kOutflow, kInflow, kNoSlipAdiabatic, kNoSlipIsothermal, kCharacteristic,
+                          kCharacteristicInflow };
 
 inline bool is_no_slip(BoundaryKind kind) {
   return kind == BoundaryKind::kNoSlipAdiabatic || kind == BoundaryKind::kNoSlipIsothermal;
@@ -57,33 +62,44 @@ struct EdgeGas {
   double spacing = 0;           ///< the block's spacing along the normal
 };
 
-/// Ghost values beyond a characteristic outflow edge (see the header): `edge` and `inner` are
-/// the primitives at the edge point and its inner neighbour, `far` the far-field pressure,
-/// `axis` the normal, `outward` +1 on a high edge and -1 on a low one, k the ghost layer.
+/// Ghost values beyond a characteristic edge (see the header): `edge` and `inner` are the
+/// primitives at the edge point and its inner neighbour, `far` the face's far-field state, `axis`
+/// the normal, `outward` +1 on a high edge and -1 on a low one, k the ghost layer. Outgoing
+/// characteristics keep their gradient. Incoming ones: on an inflow edge they take the far
+/// field's values (the outgoing acoustic wave leaves freely); on an outflow edge the acoustic one
+/// gets the amplitude K (p_b - p_far) and entropy and tangential velocity stay at the edge's.
 template <int Dim>
-Primitive<Dim> characteristic_ghost(const Primitive<Dim>& edge, const Primitive<Dim>& inner, double far, int axis,
-                                    int outward, int k, const EdgeGas& gas) {
+Primitive<Dim> characteristic_ghost(const Primitive<Dim>& edge, const Primitive<Dim>& inner, const Primitive<Dim>& far,
+                                    int axis, int outward, int k, bool inflow_edge, const EdgeGas& gas) {
   const auto n = static_cast<std::size_t>(axis);
-  const double c = std::sqrt(gas.gamma * edge.p / edge.rho), impedance = edge.rho * c;
-  const double un = outward * edge.u[n], un_inner = outward * inner.u[n];
-  const double w_out = edge.p + impedance * un, w_out_inner = inner.p + impedance * un_inner;
-  const double w_in = edge.p - impedance * un, w_in_inner = inner.p - impedance * un_inner;
-  const double entropy = edge.rho - edge.p / (c * c), entropy_inner = inner.rho - inner.p / (c * c);
-  const double layers = k;
-  const double w_out_ghost = w_out + layers * (w_out - w_out_inner);
-  double w_in_ghost = w_in + layers * (w_in - w_in_inner);
-  if (un < c) {
+  const double c = std::sqrt(gas.gamma * edge.p / edge.rho), impedance = edge.rho * c, layers = k;
+  struct Characteristics { double out, in, entropy; };  // p + Z u_n, p - Z u_n, rho - p/c^2
+  const auto of = [&](const Primitive<Dim>& w) {
+    const double un = outward * w.u[n];
+    return Characteristics{w.p + impedance * un, w.p - impedance * un, w.rho - w.p / (c * c)};
+  };
+  const auto at_edge = of(edge), at_inner = of(inner), at_far = of(far);
+  const auto extrapolated = [&](double value, double inner_value) { return value + layers * (value - inner_value); };
+  const double un = outward * edge.u[n];
+  const double w_out = un + c > 0 ? extrapolated(at_edge.out, at_inner.out) : at_far.out;
+  double w_in = 0;
+  if (un - c > 0) {
+    w_in = extrapolated(at_edge.in, at_inner.in);
+  } else if (inflow_edge) {
+    w_in = at_far.in;
+  } else {
     const double mach = un / c;
     const double relaxation = gas.outflow_sigma * (1 - mach * mach) * c / gas.length;
-    w_in_ghost = w_in + layers * gas.spacing * relaxation * (edge.p - far) / (un - c);
+    w_in = at_edge.in + layers * gas.spacing * relaxation * (edge.p - far.p) / (un - c);
   }
   const bool leaving = un > 0;
   Primitive<Dim> ghost;
-  ghost.p = 0.5 * (w_out_ghost + w_in_ghost);
-  ghost.rho = (leaving ? entropy + layers * (entropy - entropy_inner) : entropy) + ghost.p / (c * c);
+  ghost.p = 0.5 * (w_out + w_in);
+  const double entropy = leaving ? extrapolated(at_edge.entropy, at_inner.entropy) : inflow_edge ? at_far.entropy : at_edge.entropy;
+  ghost.rho = entropy + ghost.p / (c * c);
   for (std::size_t a = 0; a < static_cast<std::size_t>(Dim); ++a)
-    ghost.u[a] = leaving ? edge.u[a] + layers * (edge.u[a] - inner.u[a]) : edge.u[a];
-  ghost.u[n] = outward * (w_out_ghost - w_in_ghost) / (2 * impedance);
+    ghost.u[a] = leaving ? extrapolated(edge.u[a], inner.u[a]) : inflow_edge ? far.u[a] : edge.u[a];
+  ghost.u[n] = outward * (w_out - w_in) / (2 * impedance);
   return ghost;
 }
 
@@ -104,7 +120,7 @@ void fill_edge_ghosts(std::span<double* const> fields, const wavelet::ArrayShape
       for (std::size_t f = 0; f < fields.size(); ++f) fields[f][at] = inflow[f];
       continue;
     }
-    if (kind == BoundaryKind::kCharacteristic) {
+    if (kind == BoundaryKind::kCharacteristic || kind == BoundaryKind::kCharacteristicInflow) {
       const auto primitive_at = [&](std::ptrdiff_t index) {
         Conserved<Dim> q{};
         for (std::size_t f = 0; f < q.size(); ++f) q[f] = fields[f][index];
@@ -113,9 +129,10 @@ void fill_edge_ghosts(std::span<double* const> fields, const wavelet::ArrayShape
       const auto edge_at = static_cast<std::ptrdiff_t>(at) + (edge - i[static_cast<std::size_t>(axis)]) * stride;
       Conserved<Dim> far_state{};
       for (std::size_t f = 0; f < far_state.size(); ++f) far_state[f] = inflow[f];
-      const double far = to_primitive<Dim>(far_state, wall.gamma).p;
       const auto ghost = to_conserved<Dim>(
-          characteristic_ghost<Dim>(primitive_at(edge_at), primitive_at(edge_at - direction * stride), far, axis, direction, k, wall),
+          characteristic_ghost<Dim>(primitive_at(edge_at), primitive_at(edge_at - direction * stride),
+                                    to_primitive<Dim>(far_state, wall.gamma), axis, direction, k,
+                                    kind == BoundaryKind::kCharacteristicInflow, wall),
           wall.gamma);
       for (std::size_t f = 0; f < ghost.size(); ++f) fields[f][at] = ghost[f];
       continue;

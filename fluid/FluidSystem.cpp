@@ -297,6 +297,7 @@ FluidModel<Dim>::FluidModel(const Scene& scene) {
            : name == "isothermal_wall" ? BoundaryKind::kNoSlipIsothermal
            : name == "inflow"    ? BoundaryKind::kInflow
            : name == "characteristic_outflow" ? BoundaryKind::kCharacteristic
+           : name == "characteristic_inflow" ? BoundaryKind::kCharacteristicInflow
                                  : BoundaryKind::kOutflow;
   };
   for (int a = 0; a < Dim; ++a) {
@@ -1799,7 +1800,8 @@ void FluidModel<Dim>::report(io::Json& counts, io::Json& metrics, double step_wa
 }
 
 const std::vector<std::string> kBoundaries = {"periodic",       "slip_wall", "no_slip_wall", "isothermal_wall",
-                                              "outflow",        "inflow",    "characteristic_outflow"};
+                                              "outflow",        "inflow",    "characteristic_outflow",
+                                              "characteristic_inflow"};
 
 }  // namespace
 
@@ -1815,12 +1817,13 @@ void FluidSystem::declare(SceneSchema& schema) {
   s.texts("boundary_low", std::vector<std::string>{"outflow", "periodic", "periodic"},
           "per axis, low side: periodic, slip_wall (wall on x = lo), no_slip_wall (adiabatic), isothermal_wall (no-slip at "
           "wall_temperature), outflow (zero gradient), characteristic_outflow (non-reflecting, pressure relaxed to the "
-          "face's) or inflow (the initial state at the face, held fixed)")
+          "face's), inflow (the initial state at the face, held fixed) or characteristic_inflow (the face's state "
+          "imposed on the incoming characteristics only)")
       .one_of(kBoundaries)
       .of_length(3);
   s.texts("boundary_high", std::vector<std::string>{"outflow", "periodic", "periodic"},
           "per axis, high side: periodic, slip_wall (wall on the last point, hi - h), no_slip_wall, isothermal_wall, "
-          "outflow, characteristic_outflow or inflow")
+          "outflow, characteristic_outflow, inflow or characteristic_inflow")
       .one_of(kBoundaries)
       .of_length(3);
   s.integer("block_size", 16, "collocation points per block and axis (even)").in_range(8, wavelet::kMaxBlockSize);

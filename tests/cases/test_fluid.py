@@ -189,7 +189,7 @@ def no_slip_walls():
            f"an inviscid no-slip wall is refused naming file, line and key: {proc.stderr.strip()[:200]}")
 
 
-def characteristic_outflow():
+def characteristic_edges():
     # A sound pulse leaving through the right edge (cases/acoustic_pulse.toml): once it has left,
     # the exact solution is the uniform gas, so Linf_p / (A p) is the edge's reflection coefficient.
     amplitude = 1e-3 / 1.4
@@ -209,6 +209,18 @@ def characteristic_outflow():
     # domain of length 1 with sigma = 0.25 it stays near 1%.
     expect(reflection["characteristic, sigma = 0.25"] <= 0.015,
            f"with the default relaxation (sigma 0.25, L = 1) it reflects {reflection['characteristic, sigma = 0.25']:.2e} <= 1.5e-2")
+
+    # The same pulse sent upstream, against the flow, out through the inflow edge: the plain
+    # inflow holds the whole state and reflects it; the characteristic inflow lets it out.
+    upstream = ["fluid.normal=[-1.0,0.0,0.0]", "fluid.left=[1.0,-0.2,0.7142857142857143]"]
+    for name in ("inflow", "characteristic_inflow"):
+        s, _, _ = run("acoustic_pulse.toml", *upstream, f'fluid.boundary_low=["{name}","periodic","periodic"]',
+                      out=scratch("pulse_upstream_" + name))
+        reflection[name] = s["metrics"]["Linf_p"] / amplitude
+        print(f"{name}: reflection coefficient {reflection[name]:.2e}")
+    expect(reflection["characteristic_inflow"] <= 5e-3 and reflection["inflow"] >= 0.5,
+           f"the characteristic inflow reflects {reflection['characteristic_inflow']:.2e} <= 5e-3 "
+           f"(the plain inflow {reflection['inflow']:.2f})")
 
 
 def too_large_cfl_is_caught():
@@ -269,7 +281,7 @@ if __name__ == "__main__":
         "fluid_vortex_order_uniform": vortex_order_uniform,
         "fluid_continue_past_t_end": continue_past_t_end,
         "fluid_no_slip_walls": no_slip_walls,
-        "fluid_characteristic_outflow": characteristic_outflow,
+        "fluid_characteristic_edges": characteristic_edges,
         "fluid_vortex_capturing_keeps_order": vortex_capturing_keeps_order,
         "fluid_vortex_error_decreases_with_eps": vortex_error_decreases_with_eps,
         "fluid_conservation_with_capturing": conservation_with_capturing,
