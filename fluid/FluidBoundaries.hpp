@@ -8,7 +8,8 @@
 //     point is x = lo; on a high edge it is the last point of the block, x = hi - h.
 //   - inflow: the ghosts hold a fixed state (the initial state at the face centre, e.g. the gas
 //     behind an incoming shock). All characteristics enter through a supersonic inflow, so this is
-//     exact there; for subsonic inflow it over-specifies (no characteristic treatment yet).
+//     exact there; for subsonic inflow it over-specifies and reflects outgoing sound (use
+//     characteristic_inflow).
 //   - outflow: zero-gradient extrapolation of the conserved variables (transmissive; it
 //     reflects part of an acoustic wave).
 //   - characteristic_outflow: non-reflecting, after the locally one-dimensional characteristic
@@ -105,10 +106,11 @@ Primitive<Dim> characteristic_ghost(const Primitive<Dim>& edge, const Primitive<
 
 /// Fills the ghosts of one block beyond one edge (axis, high side or not) for the Dim + 2
 /// conserved fields. bs: interior points per axis, g: ghost layers; inflow: the conserved state
-/// of an inflow edge; wall: the gas of a no-slip wall.
+/// of an inflow edge (the far field of a characteristic one); gas: what walls and characteristic
+/// edges need beyond the state.
 template <int Dim>
 void fill_edge_ghosts(std::span<double* const> fields, const wavelet::ArrayShape<Dim>& shape, int bs, int g, int axis,
-                      bool high, BoundaryKind kind, std::span<const double> inflow, const EdgeGas& wall = {}) {
+                      bool high, BoundaryKind kind, std::span<const double> inflow, const EdgeGas& gas = {}) {
   const std::ptrdiff_t stride = shape.stride(axis);
   const int edge = high ? g + bs - 1 : g;  // array coordinate of the edge point
   const int direction = high ? 1 : -1;
@@ -124,16 +126,16 @@ void fill_edge_ghosts(std::span<double* const> fields, const wavelet::ArrayShape
       const auto primitive_at = [&](std::ptrdiff_t index) {
         Conserved<Dim> q{};
         for (std::size_t f = 0; f < q.size(); ++f) q[f] = fields[f][index];
-        return to_primitive<Dim>(q, wall.gamma);
+        return to_primitive<Dim>(q, gas.gamma);
       };
       const auto edge_at = static_cast<std::ptrdiff_t>(at) + (edge - i[static_cast<std::size_t>(axis)]) * stride;
       Conserved<Dim> far_state{};
       for (std::size_t f = 0; f < far_state.size(); ++f) far_state[f] = inflow[f];
       const auto ghost = to_conserved<Dim>(
           characteristic_ghost<Dim>(primitive_at(edge_at), primitive_at(edge_at - direction * stride),
-                                    to_primitive<Dim>(far_state, wall.gamma), axis, direction, k,
-                                    kind == BoundaryKind::kCharacteristicInflow, wall),
-          wall.gamma);
+                                    to_primitive<Dim>(far_state, gas.gamma), axis, direction, k,
+                                    kind == BoundaryKind::kCharacteristicInflow, gas),
+          gas.gamma);
       for (std::size_t f = 0; f < ghost.size(); ++f) fields[f][at] = ghost[f];
       continue;
     }
@@ -149,12 +151,12 @@ void fill_edge_ghosts(std::span<double* const> fields, const wavelet::ArrayShape
     if (kind == BoundaryKind::kNoSlipIsothermal) {
       Conserved<Dim> q{};
       for (std::size_t f = 0; f < q.size(); ++f) q[f] = fields[f][from];
-      auto w = to_primitive<Dim>(q, wall.gamma);
+      auto w = to_primitive<Dim>(q, gas.gamma);
       // Kept positive when the gas next to the wall is much hotter than twice the wall.
-      const double t_ghost = std::max(2 * wall.temperature - temperature(w.rho, w.p, wall.gamma), 0.1 * wall.temperature);
-      w.rho = wall.gamma * w.p / t_ghost;
+      const double t_ghost = std::max(2 * gas.temperature - temperature(w.rho, w.p, gas.gamma), 0.1 * gas.temperature);
+      w.rho = gas.gamma * w.p / t_ghost;
       for (auto& u : w.u) u = -u;
-      q = to_conserved<Dim>(w, wall.gamma);
+      q = to_conserved<Dim>(w, gas.gamma);
       for (std::size_t f = 0; f < q.size(); ++f) fields[f][at] = q[f];
       continue;
     }

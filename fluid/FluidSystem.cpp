@@ -229,7 +229,7 @@ class FluidModel : public io::System {
   bool sponge_thermodynamic_ = false;
   InitialCondition<Dim> initial_;
   bool no_slip_walls_ = false;
-  EdgeGas wall_gas_;
+  EdgeGas edge_gas_;
   std::unique_ptr<AdaptiveGrid<Dim>> grid_, good_;
   std::unique_ptr<ErkIntegrator> integrator_;
   RunStats stats_, good_stats_;
@@ -376,9 +376,9 @@ FluidModel<Dim>::FluidModel(const Scene& scene) {
   prandtl_ = s.real("prandtl");
   sutherland_s1_ = s.real("sutherland_s1");
   viscous_ = reynolds_ > 0;
-  wall_gas_.gamma = gamma_;
-  wall_gas_.temperature = s.real("wall_temperature");
-  wall_gas_.outflow_sigma = s.real("outflow_relaxation");
+  edge_gas_.gamma = gamma_;
+  edge_gas_.temperature = s.real("wall_temperature");
+  edge_gas_.outflow_sigma = s.real("outflow_relaxation");
   for (int a = 0; a < Dim; ++a)
     for (int side = 0; side < 2; ++side)
       if (is_no_slip(boundary_[static_cast<std::size_t>(a)][static_cast<std::size_t>(side)])) {
@@ -573,7 +573,7 @@ void FluidModel<Dim>::fill_boundary_ghosts() {
       const auto au = static_cast<std::size_t>(a);
       if (config_.periodic[au]) continue;
       const auto blocks_along = static_cast<std::uint32_t>(config_.roots[au]) << key.level;
-      auto gas = wall_gas_;
+      auto gas = edge_gas_;
       gas.length = config_.hi[au] - config_.lo[au];
       gas.spacing = grid_->spacing(key.level)[au];
       if (c[au] == 0) fill_edge_ghosts<Dim>(fields, shape, bs, g, a, false, boundary_[au][0], inflow_[au][0], gas);
@@ -616,7 +616,7 @@ void FluidModel<Dim>::constrain_walls(std::span<double> ydot, bool rate) {
         const auto fu = static_cast<std::size_t>(f);
         q[fu] = rate ? ydot[(s * kFields + fu) * per_block + p] : grid_->block(f, s)[static_cast<std::size_t>(interior_at_[p])];
       }
-      constrain_wall_point<Dim>(q, kind, wall_gas_);
+      constrain_wall_point<Dim>(q, kind, edge_gas_);
       for (int f = 0; f < kFields; ++f) {
         const auto fu = static_cast<std::size_t>(f);
         (rate ? ydot[(s * kFields + fu) * per_block + p] : grid_->block(f, s)[static_cast<std::size_t>(interior_at_[p])]) = q[fu];
