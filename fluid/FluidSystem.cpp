@@ -1231,7 +1231,8 @@ void FluidModel<Dim>::add_sponge(std::size_t slot, double* out) {
   //
   // sponge_mode = "thermodynamic" relaxes only density and pressure on outflow edges
   // (add_sponge_source), so a wake's velocity deficit is not forced towards the free stream.
-  // Measured on the Re 40 cylinder (D/8, 24 D and 48 D domains) it changes the drag by under 2%;
+  // Measured on the Re 40 cylinder (D/8, 24 D and 48 D domains), it and characteristic edges
+  // together change the drag by under 2%;
   // the drag's dependence on the domain size is the same in both modes.
   const int bs = config_.block_size;
   const auto x0 = grid_->origin(grid_->key(slot));
