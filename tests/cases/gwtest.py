@@ -121,3 +121,9 @@ def erf_inverse(z):
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if math.erf(mid) < z else (lo, mid)
     return 0.5 * (lo + hi)
+
+
+def fitted_wall(y, ratio, diffusivity, t):
+    """Wall positions fitted point by point to ratio = erf((y - y_w) / 2 sqrt(diffusivity t)), from
+    the points with 0.15 < ratio < 0.85."""
+    return [yy - 2 * math.sqrt(diffusivity * t) * erf_inverse(r) for yy, r in zip(y, ratio) if 0.15 < r < 0.85]

@@ -3,12 +3,11 @@ fluid/Penalization.hpp): the reflected-shock pressure at a penalized wall, the f
 restart, 1 vs 2 ranks and bad body input (short runs), and the published drag, recirculation
 length, Strouhal number, Galilean invariance and control-volume cross-check (long runs, validate)."""
 import csv
-import math
 import os
 
 import numpy as np
 
-from gwtest import case, erf_inverse, expect, grainwave, main, profile_along_y, read_points, run_scene as run, scratch
+from gwtest import case, expect, fitted_wall, grainwave, main, profile_along_y, read_points, run_scene as run, scratch
 
 # A small, coarse cylinder run (D / 16 at the finest level) for the mechanics, not for accuracy.
 SMALL_CYLINDER = ["fluid.max_level=2", "fluid.lo=[-8.0,-8.0,0.0]", "fluid.hi=[16.0,8.0,1.0]", "fluid.roots=[3,2,1]",
@@ -78,7 +77,7 @@ def penalized_wall_position():
         _, out, _ = run("rayleigh_penalized.toml", f"body.0.centre=[0.0,{wall},0.0]", out=scratch(f"rayleigh_{k}"))
         y, u = profile_along_y(out, "u").T
         ratio = u / speed
-        fitted = [yy - 2 * math.sqrt(nu * t) * erf_inverse(r) for yy, r in zip(y, ratio) if 0.15 < r < 0.85]
+        fitted = fitted_wall(y, ratio, nu, t)
         spread = (max(fitted) - min(fitted)) / h
         # The nested-derivative viscous terms left an odd-even zig-zag next to the wall: the
         # fitted positions then scattered by a whole spacing from point to point.
