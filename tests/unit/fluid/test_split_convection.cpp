@@ -166,3 +166,36 @@ TEST(FluidBoundaries, ThermodynamicSpongeRelaxesDensityAndPressureAndLeavesTheVe
   EXPECT_NEAR((after.rho - w.rho) / dt, -sigma * (w.rho - 1.0), 1e-6);
   EXPECT_NEAR((after.p - w.p) / dt, -sigma * (w.p - 1 / gamma), 1e-6);
 }
+
+TEST(FluidBoundaries, CharacteristicGhostsExtrapolateOutgoingAndImposeIncomingWaves) {
+  const double gamma = 1.4;
+  gf::EdgeGas gas;
+  gas.gamma = gamma;
+  gas.length = 1;
+  gas.spacing = 0.01;
+  const gf::Primitive<2> far{1.0, {0.2, 0.0}, 1 / gamma};
+  // The far state itself passes unchanged through either kind of edge.
+  for (const bool inflow_edge : {false, true}) {
+    const auto ghost = gf::characteristic_ghost<2>(far, far, far, 0, inflow_edge ? -1 : 1, 2, inflow_edge, gas);
+    EXPECT_NEAR(ghost.rho, far.rho, 1e-14);
+    EXPECT_NEAR(ghost.u[0], far.u[0], 1e-14);
+    EXPECT_NEAR(ghost.u[1], far.u[1], 1e-14);
+    EXPECT_NEAR(ghost.p, far.p, 1e-14);
+  }
+  // Supersonic outflow: every characteristic leaves, so each primitive is extrapolated linearly.
+  const gf::Primitive<2> edge{1.1, {2.0, 0.3}, 0.8}, inner{1.0, {1.9, 0.2}, 0.75};
+  const auto ghost = gf::characteristic_ghost<2>(edge, inner, far, 0, 1, 2, false, gas);
+  EXPECT_NEAR(ghost.rho, 1.3, 1e-12);
+  EXPECT_NEAR(ghost.u[0], 2.2, 1e-12);
+  EXPECT_NEAR(ghost.u[1], 0.5, 1e-12);
+  EXPECT_NEAR(ghost.p, 0.9, 1e-12);
+  // Subsonic inflow from the low edge: the ghost carries the far field's incoming characteristics
+  // (p - Z u_n outward = p + Z u, entropy, tangential velocity) and the edge's outgoing one.
+  const gf::Primitive<2> at_edge{1.02, {0.21, 0.01}, 0.72};
+  const auto in = gf::characteristic_ghost<2>(at_edge, at_edge, far, 0, -1, 1, true, gas);
+  const double c = std::sqrt(gamma * at_edge.p / at_edge.rho), z = at_edge.rho * c;
+  EXPECT_NEAR(in.p + z * in.u[0], far.p + z * far.u[0], 1e-12);           // incoming acoustic: far
+  EXPECT_NEAR(in.p - z * in.u[0], at_edge.p - z * at_edge.u[0], 1e-12);   // outgoing: the edge's
+  EXPECT_NEAR(in.rho - in.p / (c * c), far.rho - far.p / (c * c), 1e-12);  // entropy: far
+  EXPECT_NEAR(in.u[1], far.u[1], 1e-12);
+}
