@@ -114,6 +114,12 @@ void fill_edge_ghosts(std::span<double* const> fields, const wavelet::ArrayShape
   const std::ptrdiff_t stride = shape.stride(axis);
   const int edge = high ? g + bs - 1 : g;  // array coordinate of the edge point
   const int direction = high ? 1 : -1;
+  Primitive<Dim> far{};  // the face's state, for characteristic edges
+  if (kind == BoundaryKind::kCharacteristic || kind == BoundaryKind::kCharacteristicInflow) {
+    Conserved<Dim> far_state{};
+    for (std::size_t f = 0; f < far_state.size(); ++f) far_state[f] = inflow[f];
+    far = to_primitive<Dim>(far_state, gas.gamma);
+  }
   for (std::size_t at = 0; at < shape.size(); ++at) {
     const auto i = shape.coords(static_cast<std::ptrdiff_t>(at));
     const int k = (i[static_cast<std::size_t>(axis)] - edge) * direction;  // layers beyond the edge
@@ -129,11 +135,9 @@ void fill_edge_ghosts(std::span<double* const> fields, const wavelet::ArrayShape
         return to_primitive<Dim>(q, gas.gamma);
       };
       const auto edge_at = static_cast<std::ptrdiff_t>(at) + (edge - i[static_cast<std::size_t>(axis)]) * stride;
-      Conserved<Dim> far_state{};
-      for (std::size_t f = 0; f < far_state.size(); ++f) far_state[f] = inflow[f];
       const auto ghost = to_conserved<Dim>(
           characteristic_ghost<Dim>(primitive_at(edge_at), primitive_at(edge_at - direction * stride),
-                                    to_primitive<Dim>(far_state, gas.gamma), axis, direction, k,
+                                    far, axis, direction, k,
                                     kind == BoundaryKind::kCharacteristicInflow, gas),
           gas.gamma);
       for (std::size_t f = 0; f < ghost.size(); ++f) fields[f][at] = ghost[f];
