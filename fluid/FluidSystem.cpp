@@ -172,7 +172,8 @@ class FluidModel : public io::System {
   void advance(double t, double dt) override;
   std::optional<std::string> check_state() const override;
   void save_good_state() override {
-    good_ = std::make_unique<AdaptiveGrid<Dim>>(*grid_);
+    if (good_) *good_ = *grid_;  // in place: no allocation per step
+    else good_ = std::make_unique<AdaptiveGrid<Dim>>(*grid_);
     good_stats_ = stats_;
   }
   void restore_good_state() override {

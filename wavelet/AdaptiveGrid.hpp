@@ -99,7 +99,9 @@ class AdaptiveGrid {
   /// A uniform grid at min_level; field values zero, ghosts built.
   explicit AdaptiveGrid(GridConfig<Dim> config, MPI_Comm comm = MPI_COMM_WORLD);
   AdaptiveGrid(const AdaptiveGrid&);
-  AdaptiveGrid& operator=(const AdaptiveGrid&) = delete;
+  /// Copies grid, fields and ghost plan, reusing this grid's storage where it is large enough
+  /// (the solver keeps its last good state this way every step).
+  AdaptiveGrid& operator=(const AdaptiveGrid&);
   ~AdaptiveGrid();
 
   // --- metadata (replicated) ---

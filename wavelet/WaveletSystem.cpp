@@ -67,7 +67,11 @@ class WaveletModel : public io::System {
   double max_stable_dt() const override;
   void advance(double t, double dt) override;
   std::optional<std::string> check_state() const override;
-  void save_good_state() override { good_ = std::make_unique<AdaptiveGrid<Dim>>(*grid_); good_stats_ = stats_; }
+  void save_good_state() override {
+    if (good_) *good_ = *grid_;  // in place: no allocation per step
+    else good_ = std::make_unique<AdaptiveGrid<Dim>>(*grid_);
+    good_stats_ = stats_;
+  }
   void restore_good_state() override {
     grid_ = std::make_unique<AdaptiveGrid<Dim>>(*good_);
     stats_ = good_stats_;
