@@ -117,6 +117,7 @@ AdaptiveGrid<Dim>& AdaptiveGrid<Dim>::operator=(const AdaptiveGrid& o) {
   if (plan_) *plan_ = *o.plan_;
   else plan_ = std::make_unique<GhostPlan>(*o.plan_);
   operators_.clear();  // built again on demand, for this grid's configuration
+  detail_stencils_.clear();
   return *this;
 }
 
@@ -525,23 +526,69 @@ std::array<std::int64_t, 4> AdaptiveGrid<Dim>::ghost_counts() const {
 
 template <int Dim>
 void AdaptiveGrid<Dim>::block_details(int field, std::size_t slot, std::span<double> out) const {
-  std::array<std::array<AxisStencil, kMaxBlockSize>, Dim> st;
-  detail_stencils<Dim>(local_keys_[slot], config_, layout_.ghosts, st);
-  const auto shape = layout_.shape();
-  std::array<std::ptrdiff_t, Dim> stride{};
-  for (int a = 0; a < Dim; ++a) stride[static_cast<std::size_t>(a)] = shape.stride(a);
+  // d = u - P u_{j-1} in separable form: predict along x on every line of the array (ghost lines
+  // included), then along y from those values, then along z. These are the products and sums of
+  // tensor_sum (x innermost, each partial sum started at 0 and accumulated in stencil order), so
+  // every coefficient is bitwise the point-by-point one, but a tensor row is summed once per line
+  // instead of once per point that reads it (the adaptation's tagging was mostly this).
+  const auto& st = block_detail_stencils(slot);
+  const int bs = config_.block_size, g = layout_.ghosts, width = bs + 2 * g;
+  const auto ubs = static_cast<std::size_t>(bs), uw = static_cast<std::size_t>(width);
   const double* u = block(field, slot).data();
-  // Offsets in the stencils are absolute array coordinates, so the sum starts at u itself.
-  for_each_interior<Dim>(config_.block_size, layout_.ghosts, shape, [&](std::size_t p, const Index& i, std::ptrdiff_t at) {
-    std::array<const AxisStencil*, Dim> row{};
-    bool all_even = true;
-    for (int a = 0; a < Dim; ++a) {
-      const auto au = static_cast<std::size_t>(a);
-      row[au] = &st[au][static_cast<std::size_t>(i[au])];
-      all_even = all_even && row[au]->size == 1;
+  // stage[a]: axes 0..a predicted (extent bs), the others still whole array lines (extent width).
+  std::size_t lines = 1;
+  for (int a = 1; a < Dim; ++a) lines *= uw;
+  std::vector<double>& along_x = stage_[0];
+  along_x.resize(lines * ubs);  // every value written below
+  for (std::size_t line = 0; line < lines; ++line) {
+    const double* row = u + line * uw;
+    double* to = along_x.data() + line * ubs;
+    for (std::size_t i = 0; i < ubs; ++i) {
+      const AxisStencil& sx = st[0][i];
+      double sum = 0;
+      for (int k = 0; k < sx.size; ++k) sum += sx.w[static_cast<std::size_t>(k)] * row[sx.at[static_cast<std::size_t>(k)]];
+      to[i] = sum;
     }
-    out[p] = all_even ? 0.0 : u[at] - tensor_sum<Dim>(u, stride, row);
-  });
+  }
+  const double* predicted = along_x.data();
+  std::size_t done = ubs;  // values per line of the predicted axes
+  for (int a = 1; a < Dim; ++a) {
+    // Axis a: lines of `done` contiguous values, `width` of them per outer index.
+    const auto au = static_cast<std::size_t>(a);
+    std::size_t outer = 1;
+    for (int b = a + 1; b < Dim; ++b) outer *= uw;
+    std::vector<double>& next = stage_[au];
+    next.assign(outer * ubs * done, 0.0);
+    for (std::size_t o = 0; o < outer; ++o)
+      for (std::size_t j = 0; j < ubs; ++j) {
+        const AxisStencil& sa = st[au][j];
+        double* to = next.data() + (o * ubs + j) * done;
+        for (int k = 0; k < sa.size; ++k) {
+          const double w = sa.w[static_cast<std::size_t>(k)];
+          const double* from = predicted + (o * uw + static_cast<std::size_t>(sa.at[static_cast<std::size_t>(k)])) * done;
+          for (std::size_t m = 0; m < done; ++m) to[m] += w * from[m];
+        }
+      }
+    predicted = next.data();
+    done *= ubs;
+  }
+  // Interior lines along x: j, k their interior indices on the other axes.
+  std::size_t p = 0;
+  for (std::size_t k = 0; k < (Dim == 3 ? ubs : 1); ++k)
+    for (std::size_t j = 0; j < (Dim >= 2 ? ubs : 1); ++j) {
+      bool line_even = true;
+      std::size_t at = static_cast<std::size_t>(g);
+      if constexpr (Dim >= 2) {
+        line_even = st[1][j].size == 1;
+        at += (j + static_cast<std::size_t>(g)) * uw;
+      }
+      if constexpr (Dim == 3) {
+        line_even = line_even && st[2][k].size == 1;
+        at += (k + static_cast<std::size_t>(g)) * uw * uw;
+      }
+      for (std::size_t i = 0; i < ubs; ++i, ++p)
+        out[p] = line_even && st[0][i].size == 1 ? 0.0 : u[at + i] - predicted[p];
+    }
 }
 
 template <int Dim>
@@ -560,12 +607,21 @@ std::vector<double> AdaptiveGrid<Dim>::field_scales(const ThresholdConfig& th) c
   std::vector<double> scale(F, 1.0);
   if (th.normalisation == Normalisation::kAbsolute) return scale;
   std::vector<double> local(F, 0.0), global(F, 0.0);
-  const auto shape = layout_.shape();
+  // Interior lines along x, each bs contiguous values (max is exact: any order gives the same).
+  const auto ubs = static_cast<std::size_t>(config_.block_size), g = static_cast<std::size_t>(layout_.ghosts);
+  const std::size_t width = ubs + 2 * g;
   for (std::size_t f = 0; f < F; ++f)
     for (std::size_t s = 0; s < local_blocks(); ++s) {
       const double* u = data_[f].data() + s * block_volume_;
-      for_each_interior<Dim>(config_.block_size, layout_.ghosts, shape,
-                             [&](std::size_t, const Index&, std::ptrdiff_t at) { local[f] = std::max(local[f], std::abs(u[at])); });
+      double m = local[f];
+      for (std::size_t k = 0; k < (Dim == 3 ? ubs : 1); ++k)
+        for (std::size_t j = 0; j < (Dim >= 2 ? ubs : 1); ++j) {
+          std::size_t at = g;
+          if constexpr (Dim >= 2) at += (j + g) * width;
+          if constexpr (Dim == 3) at += (k + g) * width * width;
+          for (std::size_t i = 0; i < ubs; ++i) m = std::max(m, std::abs(u[at + i]));
+        }
+      local[f] = m;
     }
   MPI_Allreduce(local.data(), global.data(), static_cast<int>(F), MPI_DOUBLE, MPI_MAX, comm_);
   for (std::size_t f = 0; f < F; ++f) {
@@ -800,18 +856,41 @@ void AdaptiveGrid<Dim>::rebuild(std::span<const Key> target) {
 // Operators.
 
 template <int Dim>
+int AdaptiveGrid<Dim>::edge_class(const Key& key) const {
+  int code = key.level;
+  for (int a = 0; a < Dim; ++a) {
+    const bool low = !config_.periodic[static_cast<std::size_t>(a)] && block_touches_low(key, a);
+    const bool high = !config_.periodic[static_cast<std::size_t>(a)] && block_touches_high(key, a);
+    code = code * 4 + (low ? 1 : 0) + (high ? 2 : 0);
+  }
+  return code;
+}
+
+template <int Dim>
+const std::array<std::array<AxisStencil, kMaxBlockSize>, Dim>& AdaptiveGrid<Dim>::block_detail_stencils(
+    std::size_t slot) const {
+  // Block starts are even (Bs is even), and only blocks on a bounded edge of the domain use
+  // one-sided rows, so the stencils in array coordinates depend on the edge class alone.
+  const Key& key = local_keys_[slot];
+  auto& cached = detail_stencils_[edge_class(key)];
+  if (!cached) {
+    cached = std::make_unique<std::array<std::array<AxisStencil, kMaxBlockSize>, Dim>>();
+    detail_stencils<Dim>(key, config_, layout_.ghosts, *cached);
+  }
+  return *cached;
+}
+
+template <int Dim>
 const DerivativeOperator<Dim>& AdaptiveGrid<Dim>::derivative_operator(std::size_t slot) const {
   const Key& key = local_keys_[slot];
   DerivativeConfig dc;
   dc.accuracy = config_.derivative_accuracy;
-  int code = key.level;
   for (int a = 0; a < Dim; ++a) {
     const auto au = static_cast<std::size_t>(a);
     dc.one_sided[au][0] = !config_.periodic[au] && block_touches_low(key, a);
     dc.one_sided[au][1] = !config_.periodic[au] && block_touches_high(key, a);
-    code = code * 4 + (dc.one_sided[au][0] ? 1 : 0) + (dc.one_sided[au][1] ? 2 : 0);
   }
-  auto& op = operators_[code];
+  auto& op = operators_[edge_class(key)];
   if (!op) op = std::make_unique<DerivativeOperator<Dim>>(layout_, spacing(key.level), dc);
   return *op;
 }

@@ -46,6 +46,7 @@
 #include <string>
 #include <vector>
 
+#include "wavelet/AxisStencil.hpp"
 #include "wavelet/BlockForest.hpp"
 #include "wavelet/Stencils.hpp"
 
@@ -195,8 +196,16 @@ class AdaptiveGrid {
   std::size_t interior_points_ = 0, block_volume_ = 0;
   std::vector<std::vector<double>> data_;  // per field: local blocks x block_volume_
   std::unique_ptr<GhostPlan> plan_;
+  /// Level and, per axis, whether the block touches a bounded low / high edge of the domain:
+  /// what a block's derivative and prediction stencils depend on.
+  int edge_class(const Key& key) const;
+  const std::array<std::array<AxisStencil, kMaxBlockSize>, Dim>& block_detail_stencils(
+      std::size_t slot) const;
   mutable std::map<int, std::unique_ptr<DerivativeOperator<Dim>>> operators_;
+  mutable std::map<int, std::unique_ptr<std::array<std::array<AxisStencil, kMaxBlockSize>, Dim>>>
+      detail_stencils_;
   mutable std::vector<double> scratch_;  // one block of coefficients
+  mutable std::array<std::vector<double>, Dim> stage_;  // block_details: partial predictions
 };
 
 template <int Dim>

@@ -11,17 +11,11 @@
 #include <span>
 
 #include "wavelet/AdaptiveGrid.hpp"
+#include "wavelet/AxisStencil.hpp"
 #include "wavelet/InterpolatingWavelet.hpp"
 
 namespace grainwave::wavelet::prediction {
 using GlobalIndex64 = std::int64_t;
-
-/// Interpolation weights along one axis of a block array: value = sum_k w[k] u[at[k]].
-struct AxisStencil {
-  int size = 1;
-  std::array<int, kMaxPredictOrder> at{};
-  std::array<double, kMaxPredictOrder> w{};
-};
 
 /// Deslauriers-Dubuc prediction of the odd level index `odd` of a line of `n` points: the
 /// `order` nearest evens, shifted inside [0, n) on a non-periodic line (one-sided rows of the
