@@ -5,6 +5,8 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <optional>
+#include <unordered_map>
 #include <unordered_set>
 
 #include "wavelet/BlockPrediction.hpp"
@@ -34,6 +36,13 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   std::vector<std::int32_t> remote_src;  // index of a received point (times fields + field)
   std::vector<double> remote_w;
   std::vector<std::uint8_t> kind;        // per local array point (GhostKind)
+  // Per local block, for reuse after an adaptation: its first row, whether any of its terms is
+  // remote, and the leaves its rows were resolved from (keys, flattened); per local term, the
+  // local block it reads (so a reused row is moved to the blocks' new slots without a division).
+  std::vector<std::int32_t> block_row_begin, block_dependency_begin;
+  std::vector<char> block_has_remote;
+  std::vector<BlockKey<Dim>> block_dependencies;
+  std::vector<std::int32_t> local_src_slot;
   // Messages: point-major buffers [point][field], one contiguous range per peer rank.
   std::vector<int> recv_rank, recv_first, recv_count;
   std::vector<int> send_rank, send_first, send_count;
@@ -268,6 +277,7 @@ struct PointResolver {
         last_level = l;
         last_coords = c;
         last_leaf = *found;
+        if (found_keys) found_keys->push_back(forest.leaves()[*found]);
         return *found;
       }
     }
@@ -276,6 +286,10 @@ struct PointResolver {
   mutable int last_level = -1;
   mutable std::array<std::uint32_t, Dim> last_coords{};
   mutable std::size_t last_leaf = 0;
+  /// When set, every leaf found by a lookup (not by the remembered hit) is appended: with the
+  /// remembered hit forgotten before each block, these are all the leaves its ghosts read.
+  std::vector<BlockKey<Dim>>* found_keys = nullptr;
+  void forget() const { last_level = -1; }
 
   /// Appends the terms giving the value at (level, idx): a leaf's point, by injection from a
   /// finer leaf, or by Deslauriers-Dubuc prediction from level - 1.
@@ -333,22 +347,102 @@ struct PointResolver {
 }  // namespace
 
 template <int Dim>
-void AdaptiveGrid<Dim>::build_ghost_plan() {
+void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, std::span<const Key> previous_keys) {
   plan_ = std::make_unique<GhostPlan>();
   GhostPlan& plan = *plan_;
-  const PointResolver<Dim> resolver{forest_, config_};
+  std::vector<Key> found;
+  PointResolver<Dim> resolver{forest_, config_};
+  resolver.found_keys = &found;
   const auto shape = layout_.shape();
   const int g = layout_.ghosts, bs = config_.block_size;
   plan.kind.assign(local_keys_.size() * block_volume_, static_cast<std::uint8_t>(GhostKind::kSameLevel));
   plan.local_begin.push_back(0);
   plan.remote_begin.push_back(0);
+  plan.block_row_begin.push_back(0);
+  plan.block_dependency_begin.push_back(0);
   // Requests to other ranks: (leaf, point) -> position in that rank's list.
   std::vector<std::map<std::pair<std::size_t, std::int64_t>, int>> wanted(static_cast<std::size_t>(ranks_));
   std::vector<std::pair<int, int>> remote_pending;  // (rank, position) per remote term
   std::vector<Term> terms;
 
+  // Reuse after an adaptation. A block's rows are a function of the leaves containing the
+  // points its ghosts resolve to (leaves tile the domain, so whichever lookup found them, the
+  // same leaves give the same rows). If the block is still here and every one of those leaves
+  // is still a leaf owned by this rank, its rows are copied with block slots renumbered;
+  // otherwise (or when a row read another rank) they are built again.
+  std::unordered_map<Key, std::size_t, BlockKeyHash<Dim>> previous_slot;
+  std::vector<std::int64_t> slot_now;  // previous slot -> slot now, -1 if not local any more
+  if (previous) {
+    previous_slot.reserve(previous_keys.size());
+    slot_now.assign(previous_keys.size(), -1);
+    for (std::size_t o = 0; o < previous_keys.size(); ++o) {
+      previous_slot.emplace(previous_keys[o], o);
+      if (const auto leaf = forest_.find(previous_keys[o]); leaf && owner(*leaf) == rank_)
+        slot_now[o] = static_cast<std::int64_t>(*leaf - first_leaf_);
+    }
+  }
+  auto reusable = [&](const Key& key) -> std::optional<std::size_t> {
+    if (!previous) return std::nullopt;
+    const auto it = previous_slot.find(key);
+    if (it == previous_slot.end() || previous->block_has_remote[it->second]) return std::nullopt;
+    const std::size_t o = it->second;
+    for (auto d = previous->block_dependency_begin[o]; d < previous->block_dependency_begin[o + 1]; ++d) {
+      const auto leaf = forest_.find(previous->block_dependencies[static_cast<std::size_t>(d)]);
+      if (!leaf || owner(*leaf) != rank_) return std::nullopt;
+    }
+    return o;
+  };
+  const auto volume = static_cast<std::int64_t>(block_volume_);
+  if (previous) {  // about the same size again: no regrowth
+    plan.dest.reserve(previous->dest.size());
+    plan.local_begin.reserve(previous->local_begin.size());
+    plan.remote_begin.reserve(previous->remote_begin.size());
+    plan.local_src.reserve(previous->local_src.size());
+    plan.local_src_slot.reserve(previous->local_src_slot.size());
+    plan.local_w.reserve(previous->local_w.size());
+    plan.block_dependencies.reserve(previous->block_dependencies.size());
+  }
+
   for (std::size_t s = 0; s < local_keys_.size(); ++s) {
     const Key key = local_keys_[s];
+    if (const auto o = reusable(key)) {
+      // Bulk copies: rows [k0, k1) with terms [t0, t1) of the previous plan.
+      const GhostPlan& old = *previous;
+      const auto k0 = static_cast<std::size_t>(old.block_row_begin[*o]);
+      const auto k1 = static_cast<std::size_t>(old.block_row_begin[*o + 1]);
+      const auto t0 = static_cast<std::size_t>(old.local_begin[k0]);
+      const auto t1 = static_cast<std::size_t>(old.local_begin[k1]);
+      const auto shift = (static_cast<std::int64_t>(s) - static_cast<std::int64_t>(*o)) * volume;
+      const std::size_t rows = plan.dest.size(), first_term = plan.local_src.size();
+      plan.dest.resize(rows + (k1 - k0));
+      for (std::size_t k = k0; k < k1; ++k) plan.dest[rows + k - k0] = old.dest[k] + shift;
+      const auto term_shift = static_cast<std::int32_t>(first_term) - static_cast<std::int32_t>(t0);
+      for (std::size_t k = k0 + 1; k <= k1; ++k) plan.local_begin.push_back(old.local_begin[k] + term_shift);
+      plan.remote_begin.resize(plan.remote_begin.size() + (k1 - k0), static_cast<std::int32_t>(remote_pending.size()));
+      plan.local_src.resize(first_term + (t1 - t0));
+      plan.local_src_slot.resize(first_term + (t1 - t0));
+      plan.local_w.insert(plan.local_w.end(), old.local_w.begin() + static_cast<std::ptrdiff_t>(t0),
+                          old.local_w.begin() + static_cast<std::ptrdiff_t>(t1));
+      for (std::size_t t = t0; t < t1; ++t) {
+        const std::int32_t from = old.local_src_slot[t];
+        const std::int64_t to = slot_now[static_cast<std::size_t>(from)];
+        plan.local_src[first_term + t - t0] = old.local_src[t] + (to - from) * volume;
+        plan.local_src_slot[first_term + t - t0] = static_cast<std::int32_t>(to);
+      }
+      std::copy_n(old.kind.begin() + static_cast<std::ptrdiff_t>(*o * block_volume_), block_volume_,
+                  plan.kind.begin() + static_cast<std::ptrdiff_t>(s * block_volume_));
+      plan.block_dependencies.insert(
+          plan.block_dependencies.end(),
+          old.block_dependencies.begin() + old.block_dependency_begin[*o],
+          old.block_dependencies.begin() + old.block_dependency_begin[*o + 1]);
+      plan.block_has_remote.push_back(0);
+      plan.block_row_begin.push_back(static_cast<std::int32_t>(plan.dest.size()));
+      plan.block_dependency_begin.push_back(static_cast<std::int32_t>(plan.block_dependencies.size()));
+      continue;
+    }
+    found.clear();
+    resolver.forget();
+    const std::size_t remote_before = remote_pending.size();
     const auto c = key.coords();
     for (std::size_t p = 0; p < block_volume_; ++p) {
       const auto i = shape.coords(static_cast<std::ptrdiff_t>(p));
@@ -402,6 +496,7 @@ void AdaptiveGrid<Dim>::build_ghost_plan() {
             rest /= ubs;
           }
           plan.local_src.push_back(static_cast<std::int64_t>((leaf - first_leaf_) * block_volume_) + shape.index(q));
+          plan.local_src_slot.push_back(static_cast<std::int32_t>(leaf - first_leaf_));
           plan.local_w.push_back(w);
         } else {
           auto& list = wanted[static_cast<std::size_t>(who)];
@@ -413,6 +508,12 @@ void AdaptiveGrid<Dim>::build_ghost_plan() {
       plan.local_begin.push_back(static_cast<std::int32_t>(plan.local_src.size()));
       plan.remote_begin.push_back(static_cast<std::int32_t>(remote_pending.size()));
     }
+    std::sort(found.begin(), found.end());
+    found.erase(std::unique(found.begin(), found.end()), found.end());
+    plan.block_dependencies.insert(plan.block_dependencies.end(), found.begin(), found.end());
+    plan.block_has_remote.push_back(remote_pending.size() > remote_before ? 1 : 0);
+    plan.block_row_begin.push_back(static_cast<std::int32_t>(plan.dest.size()));
+    plan.block_dependency_begin.push_back(static_cast<std::int32_t>(plan.block_dependencies.size()));
   }
 
   // Exchange the request lists once; the receivers translate them to local offsets.
@@ -812,7 +913,7 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_with_tags(std::span<const AdaptTag> tags) {
       }
     }
   }
-  build_ghost_plan();
+  build_ghost_plan(std::move(plan_), old_keys);
   fill_ghosts();
   return counts;
 }

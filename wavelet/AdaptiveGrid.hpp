@@ -180,7 +180,10 @@ class AdaptiveGrid {
  private:
   struct GhostPlan;
   void allocate_local();
-  void build_ghost_plan();
+  /// Builds the ghost plan of the current grid. With the plan of the grid before an adaptation
+  /// and that grid's local keys, the rows of blocks whose neighbourhood did not change are
+  /// copied instead of resolved again.
+  void build_ghost_plan(std::unique_ptr<GhostPlan> previous = nullptr, std::span<const Key> previous_keys = {});
   void refresh_partition();
   bool block_touches_low(const Key& key, int axis) const;
   bool block_touches_high(const Key& key, int axis) const;
