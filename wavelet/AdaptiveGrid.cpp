@@ -127,6 +127,7 @@ AdaptiveGrid<Dim>& AdaptiveGrid<Dim>::operator=(const AdaptiveGrid& o) {
   else plan_ = std::make_unique<GhostPlan>(*o.plan_);
   operators_.clear();  // built again on demand, for this grid's configuration
   detail_stencils_.clear();
+  slot_detail_stencils_.clear();
   return *this;
 }
 
@@ -138,6 +139,7 @@ void AdaptiveGrid<Dim>::refresh_partition() {
   offsets_ = forest_.partition(ranks_);
   first_leaf_ = offsets_[static_cast<std::size_t>(rank_)];
   const auto leaves = forest_.leaves();
+  slot_detail_stencils_.clear();  // the slots hold other blocks now
   local_keys_.assign(leaves.begin() + static_cast<std::ptrdiff_t>(first_leaf_),
                      leaves.begin() + static_cast<std::ptrdiff_t>(offsets_[static_cast<std::size_t>(rank_) + 1]));
 }
@@ -626,30 +628,51 @@ std::array<std::int64_t, 4> AdaptiveGrid<Dim>::ghost_counts() const {
 // Wavelet coefficients.
 
 template <int Dim>
-void AdaptiveGrid<Dim>::block_details(int field, std::size_t slot, std::span<double> out) const {
+const double* AdaptiveGrid<Dim>::predict_block(int field, std::size_t slot) const {
   // d = u - P u_{j-1} in separable form: predict along x on every line of the array (ghost lines
   // included), then along y from those values, then along z. These are the products and sums of
   // tensor_sum (x innermost, each partial sum started at 0 and accumulated in stencil order), so
   // every coefficient is bitwise the point-by-point one, but a tensor row is summed once per line
   // instead of once per point that reads it (the adaptation's tagging was mostly this).
-  const auto& st = block_detail_stencils(slot);
+  const auto& st = block_detail_stencils(slot).axis;
   const int bs = config_.block_size, g = layout_.ghosts, width = bs + 2 * g;
   const auto ubs = static_cast<std::size_t>(bs), uw = static_cast<std::size_t>(width);
   const double* u = block(field, slot).data();
   // stage[a]: axes 0..a predicted (extent bs), the others still whole array lines (extent width).
   std::size_t lines = 1;
   for (int a = 1; a < Dim; ++a) lines *= uw;
+  // Later stages read only lines at even global indices (an odd point's stencil holds evens,
+  // an even point reads itself); block starts are even, so array index r is even iff r + g is.
+  // Lines at odd indices on any axis beyond x are skipped here and along y (their values are
+  // never read).
+  auto odd_line = [&](std::size_t line, int first_axis) {
+    for (int a = first_axis; a < Dim; ++a) {
+      std::size_t r = line;
+      for (int b = 1; b < a; ++b) r /= uw;
+      if ((r % uw + static_cast<std::size_t>(g)) % 2 != 0) return true;
+    }
+    return false;
+  };
   std::vector<double>& along_x = stage_[0];
-  along_x.resize(lines * ubs);  // every value written below
+  along_x.resize(lines * ubs);  // the lines read later are written below
   for (std::size_t line = 0; line < lines; ++line) {
+    if (odd_line(line, 1)) continue;
     const double* row = u + line * uw;
     double* to = along_x.data() + line * ubs;
-    for (std::size_t i = 0; i < ubs; ++i) {
-      const AxisStencil& sx = st[0][i];
-      double sum = 0;
-      for (int k = 0; k < sx.size; ++k) sum += sx.w[static_cast<std::size_t>(k)] * row[sx.at[static_cast<std::size_t>(k)]];
-      to[i] = sum;
-    }
+    // The stencil size is the interpolation order at odd points and 1 at even ones: a fixed
+    // count lets the compiler unroll the sum.
+    // Even and odd points alternate (block starts are even): two loops without a branch.
+    auto predict_row = [&]<int kOrder>() {
+      for (std::size_t i = 0; i < ubs; i += 2) to[i] = 0.0 + st[0][i].w[0] * row[st[0][i].at[0]];
+      for (std::size_t i = 1; i < ubs; i += 2) {
+        const AxisStencil& sx = st[0][i];
+        double sum = 0;
+        for (std::size_t k = 0; k < kOrder; ++k) sum += sx.w[k] * row[sx.at[k]];
+        to[i] = sum;
+      }
+    };
+    if (config_.order == 4) predict_row.template operator()<4>();
+    else predict_row.template operator()<6>();
   }
   const double* predicted = along_x.data();
   std::size_t done = ubs;  // values per line of the predicted axes
@@ -660,7 +683,8 @@ void AdaptiveGrid<Dim>::block_details(int field, std::size_t slot, std::span<dou
     for (int b = a + 1; b < Dim; ++b) outer *= uw;
     std::vector<double>& next = stage_[au];
     next.assign(outer * ubs * done, 0.0);
-    for (std::size_t o = 0; o < outer; ++o)
+    for (std::size_t o = 0; o < outer; ++o) {
+      if (a + 1 < Dim && odd_line(o * uw, a + 1)) continue;  // o: the lines of axes a+1..
       for (std::size_t j = 0; j < ubs; ++j) {
         const AxisStencil& sa = st[au][j];
         double* to = next.data() + (o * ubs + j) * done;
@@ -670,22 +694,33 @@ void AdaptiveGrid<Dim>::block_details(int field, std::size_t slot, std::span<dou
           for (std::size_t m = 0; m < done; ++m) to[m] += w * from[m];
         }
       }
+    }
     predicted = next.data();
     done *= ubs;
   }
+  return predicted;
+}
+
+template <int Dim>
+void AdaptiveGrid<Dim>::block_details(int field, std::size_t slot, std::span<double> out) const {
+  const double* predicted = predict_block(field, slot);
+  const auto& st = block_detail_stencils(slot).axis;
+  const auto ubs = static_cast<std::size_t>(config_.block_size), g = static_cast<std::size_t>(layout_.ghosts);
+  const std::size_t uw = ubs + 2 * g;
+  const double* u = block(field, slot).data();
   // Interior lines along x: j, k their interior indices on the other axes.
   std::size_t p = 0;
   for (std::size_t k = 0; k < (Dim == 3 ? ubs : 1); ++k)
     for (std::size_t j = 0; j < (Dim >= 2 ? ubs : 1); ++j) {
       bool line_even = true;
-      std::size_t at = static_cast<std::size_t>(g);
+      std::size_t at = g;
       if constexpr (Dim >= 2) {
         line_even = st[1][j].size == 1;
-        at += (j + static_cast<std::size_t>(g)) * uw;
+        at += (j + g) * uw;
       }
       if constexpr (Dim == 3) {
         line_even = line_even && st[2][k].size == 1;
-        at += (k + static_cast<std::size_t>(g)) * uw * uw;
+        at += (k + g) * uw * uw;
       }
       for (std::size_t i = 0; i < ubs; ++i, ++p)
         out[p] = line_even && st[0][i].size == 1 ? 0.0 : u[at + i] - predicted[p];
@@ -694,13 +729,31 @@ void AdaptiveGrid<Dim>::block_details(int field, std::size_t slot, std::span<dou
 
 template <int Dim>
 double AdaptiveGrid<Dim>::block_detail_max(int field, std::size_t slot) const {
-  scratch_.resize(interior_points_);  // allocates once
-  block_details(field, slot, scratch_);
-  const std::span<const double> d(scratch_);
-  double m = 0;
-  for (double v : d) m = std::max(m, std::abs(v));
-  return m;
+  // As block_details, without storing them: lanes of |u - P u| kept apart (packed maxima; NaNs
+  // ignored, as std::max over the coefficients would). At all-even points u - P u is exactly 0
+  // (P is the identity there), so no point needs to be singled out.
+  const double* predicted = predict_block(field, slot);
+  const auto ubs = static_cast<std::size_t>(config_.block_size), g = static_cast<std::size_t>(layout_.ghosts);
+  const std::size_t uw = ubs + 2 * g;
+  const double* u = block(field, slot).data();
+  std::array<double, kMaxBlockSize> m{};
+  std::size_t p = 0;
+  for (std::size_t k = 0; k < (Dim == 3 ? ubs : 1); ++k)
+    for (std::size_t j = 0; j < (Dim >= 2 ? ubs : 1); ++j) {
+      std::size_t at = g;
+      if constexpr (Dim >= 2) at += (j + g) * uw;
+      if constexpr (Dim == 3) at += (k + g) * uw * uw;
+      for (std::size_t i = 0; i < ubs; ++i) {
+        const double d = std::abs(u[at + i] - predicted[p + i]);
+        m[i] = d > m[i] ? d : m[i];
+      }
+      p += ubs;
+    }
+  double largest = 0;
+  for (std::size_t i = 0; i < ubs; ++i) largest = std::max(largest, m[i]);
+  return largest;
 }
+
 
 template <int Dim>
 std::vector<double> AdaptiveGrid<Dim>::field_scales(const ThresholdConfig& th) const {
@@ -714,15 +767,20 @@ std::vector<double> AdaptiveGrid<Dim>::field_scales(const ThresholdConfig& th) c
   for (std::size_t f = 0; f < F; ++f)
     for (std::size_t s = 0; s < local_blocks(); ++s) {
       const double* u = data_[f].data() + s * block_volume_;
-      double m = local[f];
+      // Lanes of a line kept apart and written as selects: packed max instructions, no chain
+      // through one accumulator (NaNs ignored, as std::max over the points would).
+      std::array<double, kMaxBlockSize> m{};
       for (std::size_t k = 0; k < (Dim == 3 ? ubs : 1); ++k)
         for (std::size_t j = 0; j < (Dim >= 2 ? ubs : 1); ++j) {
           std::size_t at = g;
           if constexpr (Dim >= 2) at += (j + g) * width;
           if constexpr (Dim == 3) at += (k + g) * width * width;
-          for (std::size_t i = 0; i < ubs; ++i) m = std::max(m, std::abs(u[at + i]));
+          for (std::size_t i = 0; i < ubs; ++i) {
+            const double v = std::abs(u[at + i]);
+            m[i] = v > m[i] ? v : m[i];
+          }
         }
-      local[f] = m;
+      for (std::size_t i = 0; i < ubs; ++i) local[f] = std::max(local[f], m[i]);
     }
   MPI_Allreduce(local.data(), global.data(), static_cast<int>(F), MPI_DOUBLE, MPI_MAX, comm_);
   for (std::size_t f = 0; f < F; ++f) {
@@ -761,24 +819,7 @@ std::int64_t AdaptiveGrid<Dim>::significant_points(const ThresholdConfig& th) co
 
 template <int Dim>
 AdaptCounts AdaptiveGrid<Dim>::adapt(const ThresholdConfig& th, AdaptPass pass, const ForcedRegion<Dim>& forced) {
-  // 1. Tag: significance of this rank's blocks, gathered so every rank sees every leaf.
-  const auto scale = field_scales(th);
-  std::vector<char> local_sig(local_blocks(), 0);
-  for (std::size_t s = 0; s < local_blocks(); ++s)
-    for (int f = 0; f < fields() && !local_sig[s]; ++f) {
-      if (!th.groups.empty() && th.groups[static_cast<std::size_t>(f)] < 0) continue;
-      local_sig[s] = block_detail_max(f, s) > th.epsilon * scale[static_cast<std::size_t>(f)];
-    }
   const std::size_t n = forest_.size();
-  std::vector<char> sig(n, 0);
-  std::vector<int> counts(static_cast<std::size_t>(ranks_)), firsts(static_cast<std::size_t>(ranks_));
-  for (std::size_t r = 0; r < counts.size(); ++r) {
-    counts[r] = static_cast<int>(offsets_[r + 1] - offsets_[r]);
-    firsts[r] = static_cast<int>(offsets_[r]);
-  }
-  MPI_Allgatherv(local_sig.data(), static_cast<int>(local_sig.size()), MPI_CHAR, sig.data(), counts.data(),
-                 firsts.data(), MPI_CHAR, comm_);
-
   const auto leaves = forest_.leaves();
   std::vector<char> force(n, 0), near_sig(n, 0);
   if (forced)
@@ -789,7 +830,54 @@ AdaptCounts AdaptiveGrid<Dim>::adapt(const ThresholdConfig& th, AdaptPass pass, 
         hi[static_cast<std::size_t>(a)] = lo[static_cast<std::size_t>(a)] + config_.block_size * h[static_cast<std::size_t>(a)];
       force[l] = forced(lo, hi);
     }
+  // A leaf's significance decides its own tag only if the pass can change it (below the finest
+  // level and not forced when refining, above the coarsest and not forced when coarsening), and
+  // a neighbour's only through the adjacent zone. Leaves it can decide nothing for are not
+  // tested: the tags come out the same, without computing coefficients the pass cannot use
+  // (typically a far field at the coarsest level, in the coarsen pass).
   std::vector<Neighbour<Dim>> around;
+  auto own_tag_open = [&](std::size_t l) {
+    return !force[l] && (pass == AdaptPass::kRefine ? leaves[l].level < config_.max_level
+                                                    : leaves[l].level > config_.min_level);
+  };
+  std::vector<char> needed(n, 0);
+  for (std::size_t l = first_leaf_; l < first_leaf_ + local_blocks(); ++l) {
+    needed[l] = own_tag_open(l);
+    if (needed[l] || !th.adjacent_blocks) continue;
+    forest_.neighbours(leaves[l], around);
+    for (const auto& nb : around)
+      if ((pass == AdaptPass::kCoarsen || nb.level_difference <= 0) && own_tag_open(*forest_.find(nb.key))) {
+        needed[l] = 1;
+        break;
+      }
+  }
+
+  // 1. Tag: significance of this rank's blocks, gathered so every rank sees every leaf.
+  const auto scale = field_scales(th);
+  std::vector<char> local_sig(local_blocks(), 0);
+  for (std::size_t s = 0; s < local_blocks(); ++s) {
+    if (!needed[first_leaf_ + s]) continue;
+    for (int f = 0; f < fields() && !local_sig[s]; ++f) {
+      if (!th.groups.empty() && th.groups[static_cast<std::size_t>(f)] < 0) continue;
+      const double threshold = th.epsilon * scale[static_cast<std::size_t>(f)];
+      // A block whose whole range of values bounds every coefficient below the threshold is
+      // insignificant without computing them (most of a far field). The margin covers the
+      // rounding of the computed coefficients, so no decision differs from computing them.
+      const auto [low, high] = block_bounds(f, s);
+      const double rounding = 1e-12 * std::max(std::abs(low), std::abs(high));
+      if (block_detail_stencils(s).bound * (high - low) * (1 + 1e-12) + rounding < threshold) continue;
+      local_sig[s] = block_detail_max(f, s) > threshold;
+    }
+  }
+  std::vector<char> sig(n, 0);
+  std::vector<int> counts(static_cast<std::size_t>(ranks_)), firsts(static_cast<std::size_t>(ranks_));
+  for (std::size_t r = 0; r < counts.size(); ++r) {
+    counts[r] = static_cast<int>(offsets_[r + 1] - offsets_[r]);
+    firsts[r] = static_cast<int>(offsets_[r]);
+  }
+  MPI_Allgatherv(local_sig.data(), static_cast<int>(local_sig.size()), MPI_CHAR, sig.data(), counts.data(),
+                 firsts.data(), MPI_CHAR, comm_);
+
   if (th.adjacent_blocks)
     for (std::size_t l = 0; l < n; ++l) {
       if (!sig[l]) continue;
@@ -811,6 +899,13 @@ AdaptCounts AdaptiveGrid<Dim>::adapt(const ThresholdConfig& th, AdaptPass pass, 
 
 template <int Dim>
 AdaptCounts AdaptiveGrid<Dim>::adapt_with_tags(std::span<const AdaptTag> tags) {
+  // Nothing to refine (below the finest level) and nothing to coarsen: the forest stays as it
+  // is, without copying it to find out.
+  bool may_change = false;
+  for (std::size_t l = 0; l < tags.size() && !may_change; ++l)
+    may_change = tags[l] == AdaptTag::kCoarsen ||
+                 (tags[l] == AdaptTag::kRefine && forest_.leaves()[l].level < config_.max_level);
+  if (!may_change && tags.size() == forest_.size()) return {};
   BlockForest<Dim> next = forest_;
   const AdaptCounts counts = next.adapt(tags);  // refine, coarsen, 2:1 balance
   if (counts.refined == 0 && counts.coarsened == 0) return counts;  // same blocks, same ghosts
@@ -959,26 +1054,69 @@ void AdaptiveGrid<Dim>::rebuild(std::span<const Key> target) {
 template <int Dim>
 int AdaptiveGrid<Dim>::edge_class(const Key& key) const {
   int code = key.level;
+  const auto c = key.coords();  // once: de-interleaving the Morton code is not free
   for (int a = 0; a < Dim; ++a) {
-    const bool low = !config_.periodic[static_cast<std::size_t>(a)] && block_touches_low(key, a);
-    const bool high = !config_.periodic[static_cast<std::size_t>(a)] && block_touches_high(key, a);
+    const auto au = static_cast<std::size_t>(a);
+    const bool low = !config_.periodic[au] && c[au] == 0;
+    const bool high = !config_.periodic[au] && c[au] + 1 == forest_.blocks_along(a, key.level);
     code = code * 4 + (low ? 1 : 0) + (high ? 2 : 0);
   }
   return code;
 }
 
 template <int Dim>
-const std::array<std::array<AxisStencil, kMaxBlockSize>, Dim>& AdaptiveGrid<Dim>::block_detail_stencils(
-    std::size_t slot) const {
+const typename AdaptiveGrid<Dim>::DetailStencils& AdaptiveGrid<Dim>::block_detail_stencils(std::size_t slot) const {
   // Block starts are even (Bs is even), and only blocks on a bounded edge of the domain use
   // one-sided rows, so the stencils in array coordinates depend on the edge class alone.
+  if (slot_detail_stencils_.size() != local_keys_.size()) slot_detail_stencils_.assign(local_keys_.size(), nullptr);
+  if (const auto* known = slot_detail_stencils_[slot]) return *known;
   const Key& key = local_keys_[slot];
   auto& cached = detail_stencils_[edge_class(key)];
   if (!cached) {
-    cached = std::make_unique<std::array<std::array<AxisStencil, kMaxBlockSize>, Dim>>();
-    detail_stencils<Dim>(key, config_, layout_.ghosts, *cached);
+    cached = std::make_unique<DetailStencils>();
+    detail_stencils<Dim>(key, config_, layout_.ghosts, cached->axis);
+    // Each 1D row sums to 1 (it reproduces constants), so d = sum_k w_k (u - u_k) and
+    // |d| <= sum |w| (max - min); the tensor sum of |w| is the product of the rows' sums.
+    for (const auto& rows : cached->axis) {
+      double widest = 1;
+      for (int i = 0; i < config_.block_size; ++i) {
+        const AxisStencil& row = rows[static_cast<std::size_t>(i)];
+        double sum = 0;
+        for (int k = 0; k < row.size; ++k) sum += std::abs(row.w[static_cast<std::size_t>(k)]);
+        widest = std::max(widest, sum);
+      }
+      cached->bound *= widest;
+    }
   }
+  slot_detail_stencils_[slot] = cached.get();
   return *cached;
+}
+
+template <int Dim>
+std::pair<double, double> AdaptiveGrid<Dim>::block_bounds(int field, std::size_t slot) const {
+  const double* u = data_[static_cast<std::size_t>(field)].data() + slot * block_volume_;
+  // Eight lanes each, written as selects so the compiler can use packed min/max.
+  constexpr std::size_t kLanes = 8;
+  std::array<double, kLanes> lo, hi;
+  lo.fill(u[0]);
+  hi.fill(u[0]);
+  std::size_t k = 0;
+  for (; k + kLanes <= block_volume_; k += kLanes)
+    for (std::size_t l = 0; l < kLanes; ++l) {
+      const double v = u[k + l];
+      lo[l] = v < lo[l] ? v : lo[l];
+      hi[l] = v > hi[l] ? v : hi[l];
+    }
+  for (; k < block_volume_; ++k) {
+    lo[0] = u[k] < lo[0] ? u[k] : lo[0];
+    hi[0] = u[k] > hi[0] ? u[k] : hi[0];
+  }
+  double low = lo[0], high = hi[0];
+  for (std::size_t l = 1; l < kLanes; ++l) {
+    low = std::min(low, lo[l]);
+    high = std::max(high, hi[l]);
+  }
+  return {low, high};
 }
 
 template <int Dim>

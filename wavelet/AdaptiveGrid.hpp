@@ -44,6 +44,7 @@
 #include <memory>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "wavelet/AxisStencil.hpp"
@@ -202,11 +203,22 @@ class AdaptiveGrid {
   /// Level and, per axis, whether the block touches a bounded low / high edge of the domain:
   /// what a block's derivative and prediction stencils depend on.
   int edge_class(const Key& key) const;
-  const std::array<std::array<AxisStencil, kMaxBlockSize>, Dim>& block_detail_stencils(
-      std::size_t slot) const;
+  /// A block's prediction stencils per axis, and the bound B of sum |weights| of its tensor
+  /// stencils: every coefficient obeys |d| <= B (max u - min u) over the block with ghosts.
+  struct DetailStencils {
+    std::array<std::array<AxisStencil, kMaxBlockSize>, Dim> axis;
+    double bound = 1;
+  };
+  const DetailStencils& block_detail_stencils(std::size_t slot) const;
+  /// P u at a block's interior points (interior order): the prediction from its even points,
+  /// u itself at all-even points. Points into a scratch buffer, valid until the next call.
+  const double* predict_block(int field, std::size_t slot) const;
+  /// min u and max u of a field over a block's array, ghosts included (NaNs ignored).
+  std::pair<double, double> block_bounds(int field, std::size_t slot) const;
   mutable std::map<int, std::unique_ptr<DerivativeOperator<Dim>>> operators_;
-  mutable std::map<int, std::unique_ptr<std::array<std::array<AxisStencil, kMaxBlockSize>, Dim>>>
-      detail_stencils_;
+  mutable std::map<int, std::unique_ptr<DetailStencils>> detail_stencils_;
+  /// The entry of detail_stencils_ of each local slot (cleared when the slots change).
+  mutable std::vector<const DetailStencils*> slot_detail_stencils_;
   mutable std::vector<double> scratch_;  // one block of coefficients
   mutable std::array<std::vector<double>, Dim> stage_;  // block_details: partial predictions
 };

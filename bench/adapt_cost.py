@@ -1,0 +1,59 @@
+#!/usr/bin/env python3
+"""What the adaptive grid costs next to the physics, on real 2D Navier-Stokes runs: one
+adaptation cycle (refine pass before a step, coarsen pass after it, tagging included) and one
+ghost fill, against one right-hand-side evaluation on the same grid. Issue 3's target: adapt +
+ghost fill <= 25% of one 2D compressible-NS RHS. The figures come from each run's summary.json
+(metrics adapt_cycle_s, ghost_fill_s, rhs_evaluation_s, adapt_ghost_over_rhs), which every fluid
+run reports; this script only picks representative runs and prints the table.
+
+usage: bench/adapt_cost.py GRAINWAVE_EXECUTABLE [OUT_FOLDER]
+"""
+import json
+import os
+import subprocess
+import sys
+
+SOURCE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+# (label, scene, settings): short runs, long enough for the grid to settle into its pattern.
+RUNS = [
+    ("cylinder Re 40 (penalized, 2D NS)", "cylinder_re40.toml",
+     ["run.t_end=12", "penalization.average_after=5", "output.interval=0"]),
+    ("isentropic vortex, Re_a 1000 (2D NS)", "isentropic_vortex.toml",
+     ["run.t_end=2", "fluid.reynolds=1000", "fluid.shock_capturing=false", "output.interval=0"]),
+    ("2D Riemann problem, Re_a 1e4 (2D NS)", "riemann2d.toml",
+     ["run.t_end=0.15", "fluid.reynolds=10000", "output.interval=0"]),
+]
+
+
+def run(exe, scene, out, settings):
+    cmd = [exe, "run", os.path.join(SOURCE, "cases", scene), "--out", out]
+    for s in settings:
+        cmd += ["--set", s]
+    subprocess.run(cmd, check=True, capture_output=True, text=True)
+    with open(os.path.join(out, "summary.json")) as f:
+        return json.load(f)
+
+
+def main():
+    if len(sys.argv) < 2:
+        sys.exit(__doc__)
+    exe = sys.argv[1]
+    out = sys.argv[2] if len(sys.argv) > 2 else "out/adapt_cost"
+    os.makedirs(out, exist_ok=True)
+    print(f"{'run':40s} {'blocks':>7s} {'adapt cycle':>12s} {'ghost fill':>11s} {'RHS':>10s} "
+          f"{'(adapt+ghost)/RHS':>18s}  target <= 0.25")
+    for label, scene, settings in RUNS:
+        s = run(exe, scene, os.path.join(out, scene.removesuffix(".toml")), settings)
+        m = s["metrics"]
+        if "adapt_cycle_s" not in m:
+            print(f"{label:40s} (no adaptation in this run)")
+            continue
+        ratio = m["adapt_ghost_over_rhs"]
+        print(f"{label:40s} {s['counts']['blocks']:7d} {m['adapt_cycle_s'] * 1e3:9.3f} ms "
+              f"{m['ghost_fill_s'] * 1e3:8.3f} ms {m['rhs_evaluation_s'] * 1e3:7.3f} ms {ratio:18.3f}  "
+              f"{'met' if ratio <= 0.25 else 'not met'}")
+
+
+if __name__ == "__main__":
+    main()
