@@ -156,22 +156,30 @@ def disc_xdmf_opens():
     expect(high > low, f"more than one level visible ({low}..{high})")
 
 
-def validate_error_control():
-    """Long (label validate): the translating disc over four decades of eps on a deep grid; the
-    reconstruction error stays below C eps and the significant set grows like eps^(-d/p)."""
+def error_control_sweep(name, scene, settings, epsilons, d_over_p):
     rows = []
-    for eps in (1e-2, 1e-3, 1e-4, 1e-5):
-        out = scratch(f"wavelet_validate_{eps:.0e}")
-        grainwave("run", case("wavelet_disc_2d.toml"), "--set", "run.t_end=0.1", "--set", "wavelet.max_level=6",
-                  "--set", "wavelet.width=0.04", "--set", f"wavelet.epsilon={eps}", "--out", out, check=0)
+    for eps in epsilons:
+        out = scratch(f"wavelet_validate_{name}_{eps:.0e}")
+        grainwave("run", case(scene), *sum((["--set", s] for s in settings), []),
+                  "--set", f"wavelet.epsilon={eps}", "--out", out, check=0)
         m = summary(out)["metrics"]
         rows.append((eps, m["reconstruction_error"], m["significant_fraction"], m["points_fraction"]))
-        print(f"eps {eps:.0e}: error {m['reconstruction_error']:.3e} (C {m['reconstruction_error'] / eps:.2f}), "
-              f"significant {m['significant_fraction']:.4f}, active {m['points_fraction']:.4f}")
-        expect(m["reconstruction_error"] <= 2 * eps, f"eps {eps:.0e}: error <= 2 eps")
+        print(f"{name} eps {eps:.0e}: error {m['reconstruction_error']:.3e} (C {m['reconstruction_error'] / eps:.2f}), "
+              f"significant {m['significant_fraction']:.5f}, active {m['points_fraction']:.5f}")
+        expect(m["reconstruction_error"] <= 2 * eps, f"{name} eps {eps:.0e}: error <= 2 eps")
+    # Growth over the finer decades (the coarsest eps holds too few coefficients to be asymptotic).
     slope = np.log(rows[-1][2] / rows[1][2]) / np.log(rows[1][0] / rows[-1][0])
-    # d/p = 2/4; the coarsest eps holds too few coefficients to be in the asymptotic range.
-    expect(abs(slope - 0.5) < 0.15, f"significant points grow like eps^-{slope:.2f} (d/p = 0.5)")
+    expect(abs(slope - d_over_p) < 0.15, f"{name}: significant points grow like eps^-{slope:.2f} (d/p = {d_over_p})")
+
+
+def validate_error_control():
+    """Long (label validate): the translating disc (2D, deep grid) and the translating sphere (3D)
+    over eps = 1e-2 ... 1e-6; the reconstruction error stays below C eps and the significant set
+    grows like eps^(-d/p)."""
+    eps = (1e-2, 1e-3, 1e-4, 1e-5, 1e-6)
+    error_control_sweep("disc_2d", "wavelet_disc_2d.toml",
+                        ["run.t_end=0.1", "wavelet.max_level=6", "wavelet.width=0.04"], eps, 0.5)
+    error_control_sweep("sphere_3d", "wavelet_sphere_3d.toml", ["run.t_end=0.05"], eps, 0.75)
 
 
 main({"wavelet_cases_run": cases_run,
