@@ -43,6 +43,10 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   std::vector<char> block_has_remote;
   std::vector<BlockKey<Dim>> block_dependencies;
   std::vector<std::int32_t> local_src_slot;
+  // The rows again, sorted for filling: copies (one local term of weight 1, nothing remote:
+  // same-level neighbours and injection from finer leaves, most ghosts) and weighted sums.
+  std::vector<std::int64_t> copy_dest, copy_src;
+  std::vector<std::int32_t> sum_rows;
   // Messages: point-major buffers [point][field], one contiguous range per peer rank.
   std::vector<int> recv_rank, recv_first, recv_count;
   std::vector<int> send_rank, send_first, send_count;
@@ -279,7 +283,9 @@ struct PointResolver {
         last_level = l;
         last_coords = c;
         last_leaf = *found;
-        if (found_keys) found_keys->push_back(forest.leaves()[*found]);
+        // Consecutive lookups mostly find the same few leaves: skip repeats of the last one.
+        if (found_keys && (found_keys->empty() || found_keys->back() != forest.leaves()[*found]))
+          found_keys->push_back(forest.leaves()[*found]);
         return *found;
       }
     }
@@ -573,6 +579,17 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
   plan.send_buffer.assign(plan.send_src.size() * static_cast<std::size_t>(F), 0.0);
   plan.recv_buffer.assign(static_cast<std::size_t>(recv_first[P]) * static_cast<std::size_t>(F), 0.0);
   plan.requests.resize(plan.recv_rank.size() + plan.send_rank.size());
+  for (std::size_t k = 0; k < plan.dest.size(); ++k) {
+    const auto t = static_cast<std::size_t>(plan.local_begin[k]);
+    const bool copy = plan.local_begin[k + 1] - plan.local_begin[k] == 1 && plan.local_w[t] == 1.0 &&
+                      plan.remote_begin[k + 1] == plan.remote_begin[k];
+    if (copy) {
+      plan.copy_dest.push_back(plan.dest[k]);
+      plan.copy_src.push_back(plan.local_src[t]);
+    } else {
+      plan.sum_rows.push_back(static_cast<std::int32_t>(k));
+    }
+  }
 }
 
 template <int Dim>
@@ -590,11 +607,15 @@ void AdaptiveGrid<Dim>::fill_ghosts() {
   for (std::size_t k = 0; k < plan.send_rank.size(); ++k)
     MPI_Isend(plan.send_buffer.data() + static_cast<std::size_t>(plan.send_first[k]) * Fu, plan.send_count[k] * F,
               MPI_DOUBLE, plan.send_rank[k], 71, comm_, &plan.requests[nreq++]);
-  // Local contributions while the messages travel.
-  const std::size_t ghosts = plan.dest.size();
+  // Local contributions while the messages travel. Sources are interior points, so the order
+  // of the rows does not matter. A copy is written 0 + u (what the weighted sum gives: -0
+  // becomes +0), so the values are bitwise those of the sums.
+  const std::size_t ghosts = plan.dest.size(), copies = plan.copy_dest.size();
   for (std::size_t f = 0; f < Fu; ++f) {
     double* u = data_[f].data();
-    for (std::size_t k = 0; k < ghosts; ++k) {
+    for (std::size_t c = 0; c < copies; ++c) u[plan.copy_dest[c]] = 0.0 + u[plan.copy_src[c]];
+    for (const std::int32_t row : plan.sum_rows) {
+      const auto k = static_cast<std::size_t>(row);
       double v = 0;
       for (auto t = plan.local_begin[k]; t < plan.local_begin[k + 1]; ++t)
         v += plan.local_w[static_cast<std::size_t>(t)] * u[plan.local_src[static_cast<std::size_t>(t)]];

@@ -167,7 +167,8 @@ def error_control_sweep(name, scene, settings, epsilons, d_over_p):
         print(f"{name} eps {eps:.0e}: error {m['reconstruction_error']:.3e} (C {m['reconstruction_error'] / eps:.2f}), "
               f"significant {m['significant_fraction']:.5f}, active {m['points_fraction']:.5f}")
         expect(m["reconstruction_error"] <= 2 * eps, f"{name} eps {eps:.0e}: error <= 2 eps")
-    expect(all(b[2] >= a[2] for a, b in zip(rows, rows[1:])), f"{name}: the significant set grows as eps falls")
+    # From the second eps on (at the coarsest the set is a handful of points, within noise).
+    expect(all(b[2] > a[2] for a, b in zip(rows[1:], rows[2:])), f"{name}: the significant set grows as eps falls")
     if d_over_p is None:
         return
     # Growth over the finer decades (the coarsest eps holds too few coefficients to be asymptotic).
