@@ -120,53 +120,62 @@ void fill_edge_ghosts(std::span<double* const> fields, const wavelet::ArrayShape
     for (std::size_t f = 0; f < far_state.size(); ++f) far_state[f] = inflow[f];
     far = to_primitive<Dim>(far_state, gas.gamma);
   }
-  for (std::size_t at = 0; at < shape.size(); ++at) {
-    const auto i = shape.coords(static_cast<std::ptrdiff_t>(at));
-    const int k = (i[static_cast<std::size_t>(axis)] - edge) * direction;  // layers beyond the edge
-    if (k <= 0) continue;
-    if (kind == BoundaryKind::kInflow) {
-      for (std::size_t f = 0; f < fields.size(); ++f) fields[f][at] = inflow[f];
-      continue;
-    }
-    if (kind == BoundaryKind::kCharacteristic || kind == BoundaryKind::kCharacteristicInflow) {
-      const auto primitive_at = [&](std::ptrdiff_t index) {
-        Conserved<Dim> q{};
-        for (std::size_t f = 0; f < q.size(); ++f) q[f] = fields[f][index];
-        return to_primitive<Dim>(q, gas.gamma);
-      };
-      const auto edge_at = static_cast<std::ptrdiff_t>(at) + (edge - i[static_cast<std::size_t>(axis)]) * stride;
-      const auto ghost = to_conserved<Dim>(
-          characteristic_ghost<Dim>(primitive_at(edge_at), primitive_at(edge_at - direction * stride),
-                                    far, axis, direction, k,
-                                    kind == BoundaryKind::kCharacteristicInflow, gas),
-          gas.gamma);
-      for (std::size_t f = 0; f < ghost.size(); ++f) fields[f][at] = ghost[f];
-      continue;
-    }
-    const bool mirror = kind == BoundaryKind::kSlipWall || is_no_slip(kind);
-    const int source = mirror ? edge - direction * k : edge;
-    const auto from = static_cast<std::ptrdiff_t>(at) + (source - i[static_cast<std::size_t>(axis)]) * stride;
-    if (kind == BoundaryKind::kNoSlipAdiabatic) {
-      fields[0][at] = fields[0][from];
-      for (std::size_t f = 1; f <= static_cast<std::size_t>(Dim); ++f) fields[f][at] = -fields[f][from];
-      fields[Dim + 1][at] = fields[Dim + 1][from];
-      continue;
-    }
-    if (kind == BoundaryKind::kNoSlipIsothermal) {
-      Conserved<Dim> q{};
-      for (std::size_t f = 0; f < q.size(); ++f) q[f] = fields[f][from];
-      auto w = to_primitive<Dim>(q, gas.gamma);
-      // Kept positive when the gas next to the wall is much hotter than twice the wall.
-      const double t_ghost = std::max(2 * gas.temperature - temperature(w.rho, w.p, gas.gamma), 0.1 * gas.temperature);
-      w.rho = gas.gamma * w.p / t_ghost;
-      for (auto& u : w.u) u = -u;
-      q = to_conserved<Dim>(w, gas.gamma);
-      for (std::size_t f = 0; f < q.size(); ++f) fields[f][at] = q[f];
-      continue;
-    }
-    for (std::size_t f = 0; f < fields.size(); ++f) {
-      const double v = fields[f][from];
-      fields[f][at] = (kind == BoundaryKind::kSlipWall && f == static_cast<std::size_t>(axis) + 1) ? -v : v;
+  // The layers beyond the edge, k = 1, 2, ...: the points with i[axis] = edge + direction k are
+  // runs of `stride` consecutive indices, one every stride * extent. Every value below is read
+  // from the edge side, so the order of the points does not matter.
+  const int extent = shape.extent[static_cast<std::size_t>(axis)];
+  const auto period = static_cast<std::size_t>(stride) * static_cast<std::size_t>(extent);
+  for (int k = 1; edge + direction * k >= 0 && edge + direction * k < extent; ++k) {
+    for (std::size_t run = static_cast<std::size_t>(edge + direction * k) * static_cast<std::size_t>(stride);
+         run < shape.size(); run += period) {
+      for (std::size_t at = run; at < run + static_cast<std::size_t>(stride); ++at) {
+        std::array<int, Dim> i{};
+        i[static_cast<std::size_t>(axis)] = edge + direction * k;  // the only coordinate used below
+        if (kind == BoundaryKind::kInflow) {
+          for (std::size_t f = 0; f < fields.size(); ++f) fields[f][at] = inflow[f];
+          continue;
+        }
+        if (kind == BoundaryKind::kCharacteristic || kind == BoundaryKind::kCharacteristicInflow) {
+          const auto primitive_at = [&](std::ptrdiff_t index) {
+            Conserved<Dim> q{};
+            for (std::size_t f = 0; f < q.size(); ++f) q[f] = fields[f][index];
+            return to_primitive<Dim>(q, gas.gamma);
+          };
+          const auto edge_at = static_cast<std::ptrdiff_t>(at) + (edge - i[static_cast<std::size_t>(axis)]) * stride;
+          const auto ghost = to_conserved<Dim>(
+              characteristic_ghost<Dim>(primitive_at(edge_at), primitive_at(edge_at - direction * stride),
+                                        far, axis, direction, k,
+                                        kind == BoundaryKind::kCharacteristicInflow, gas),
+              gas.gamma);
+          for (std::size_t f = 0; f < ghost.size(); ++f) fields[f][at] = ghost[f];
+          continue;
+        }
+        const bool mirror = kind == BoundaryKind::kSlipWall || is_no_slip(kind);
+        const int source = mirror ? edge - direction * k : edge;
+        const auto from = static_cast<std::ptrdiff_t>(at) + (source - i[static_cast<std::size_t>(axis)]) * stride;
+        if (kind == BoundaryKind::kNoSlipAdiabatic) {
+          fields[0][at] = fields[0][from];
+          for (std::size_t f = 1; f <= static_cast<std::size_t>(Dim); ++f) fields[f][at] = -fields[f][from];
+          fields[Dim + 1][at] = fields[Dim + 1][from];
+          continue;
+        }
+        if (kind == BoundaryKind::kNoSlipIsothermal) {
+          Conserved<Dim> q{};
+          for (std::size_t f = 0; f < q.size(); ++f) q[f] = fields[f][from];
+          auto w = to_primitive<Dim>(q, gas.gamma);
+          // Kept positive when the gas next to the wall is much hotter than twice the wall.
+          const double t_ghost = std::max(2 * gas.temperature - temperature(w.rho, w.p, gas.gamma), 0.1 * gas.temperature);
+          w.rho = gas.gamma * w.p / t_ghost;
+          for (auto& u : w.u) u = -u;
+          q = to_conserved<Dim>(w, gas.gamma);
+          for (std::size_t f = 0; f < q.size(); ++f) fields[f][at] = q[f];
+          continue;
+        }
+        for (std::size_t f = 0; f < fields.size(); ++f) {
+          const double v = fields[f][from];
+          fields[f][at] = (kind == BoundaryKind::kSlipWall && f == static_cast<std::size_t>(axis) + 1) ? -v : v;
+        }
+      }
     }
   }
 }
