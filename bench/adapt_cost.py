@@ -8,31 +8,21 @@ run reports; this script only picks representative runs and prints the table.
 
 usage: bench/adapt_cost.py GRAINWAVE_EXECUTABLE [OUT_FOLDER]
 """
-import json
 import os
-import subprocess
 import sys
 
-SOURCE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from runtime_vs_error import run  # noqa: E402  (one scene run -> its summary.json)
 
 # (label, scene, settings): short runs, long enough for the grid to settle into its pattern.
 RUNS = [
     ("cylinder Re 40 (penalized, 2D NS)", "cylinder_re40.toml",
-     ["run.t_end=12", "penalization.average_after=5", "output.interval=0"]),
+     ["run.t_end=12", "penalization.average_after=5"]),
     ("isentropic vortex, Re_a 1000 (2D NS)", "isentropic_vortex.toml",
-     ["run.t_end=2", "fluid.reynolds=1000", "fluid.shock_capturing=false", "output.interval=0"]),
+     ["run.t_end=2", "fluid.reynolds=1000", "fluid.shock_capturing=false"]),
     ("2D Riemann problem, Re_a 1e4 (2D NS)", "riemann2d.toml",
-     ["run.t_end=0.15", "fluid.reynolds=10000", "output.interval=0"]),
+     ["run.t_end=0.15", "fluid.reynolds=10000"]),
 ]
-
-
-def run(exe, scene, out, settings):
-    cmd = [exe, "run", os.path.join(SOURCE, "cases", scene), "--out", out]
-    for s in settings:
-        cmd += ["--set", s]
-    subprocess.run(cmd, check=True, capture_output=True, text=True)
-    with open(os.path.join(out, "summary.json")) as f:
-        return json.load(f)
 
 
 def main():

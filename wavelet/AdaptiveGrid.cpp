@@ -726,26 +726,15 @@ template <int Dim>
 void AdaptiveGrid<Dim>::block_details(int field, std::size_t slot, std::span<double> out) const {
   const double* predicted = predict_block(field, slot);
   const auto& st = block_detail_stencils(slot).axis;
-  const auto ubs = static_cast<std::size_t>(config_.block_size), g = static_cast<std::size_t>(layout_.ghosts);
-  const std::size_t uw = ubs + 2 * g;
+  const auto ubs = static_cast<std::size_t>(config_.block_size);
   const double* u = block(field, slot).data();
-  // Interior lines along x: j, k their interior indices on the other axes.
-  std::size_t p = 0;
-  for (std::size_t k = 0; k < (Dim == 3 ? ubs : 1); ++k)
-    for (std::size_t j = 0; j < (Dim >= 2 ? ubs : 1); ++j) {
-      bool line_even = true;
-      std::size_t at = g;
-      if constexpr (Dim >= 2) {
-        line_even = st[1][j].size == 1;
-        at += (j + g) * uw;
-      }
-      if constexpr (Dim == 3) {
-        line_even = line_even && st[2][k].size == 1;
-        at += (k + g) * uw * uw;
-      }
-      for (std::size_t i = 0; i < ubs; ++i, ++p)
-        out[p] = line_even && st[0][i].size == 1 ? 0.0 : u[at + i] - predicted[p];
-    }
+  for_each_interior_line<Dim>(config_.block_size, layout_.ghosts, [&](std::size_t at, std::size_t p, std::size_t j, std::size_t k) {
+    bool line_even = true;
+    if constexpr (Dim >= 2) line_even = st[1][j].size == 1;
+    if constexpr (Dim == 3) line_even = line_even && st[2][k].size == 1;
+    for (std::size_t i = 0; i < ubs; ++i)
+      out[p + i] = line_even && st[0][i].size == 1 ? 0.0 : u[at + i] - predicted[p + i];
+  });
 }
 
 template <int Dim>
@@ -754,22 +743,15 @@ double AdaptiveGrid<Dim>::block_detail_max(int field, std::size_t slot) const {
   // ignored, as std::max over the coefficients would). At all-even points u - P u is exactly 0
   // (P is the identity there), so no point needs to be singled out.
   const double* predicted = predict_block(field, slot);
-  const auto ubs = static_cast<std::size_t>(config_.block_size), g = static_cast<std::size_t>(layout_.ghosts);
-  const std::size_t uw = ubs + 2 * g;
+  const auto ubs = static_cast<std::size_t>(config_.block_size);
   const double* u = block(field, slot).data();
   std::array<double, kMaxBlockSize> m{};
-  std::size_t p = 0;
-  for (std::size_t k = 0; k < (Dim == 3 ? ubs : 1); ++k)
-    for (std::size_t j = 0; j < (Dim >= 2 ? ubs : 1); ++j) {
-      std::size_t at = g;
-      if constexpr (Dim >= 2) at += (j + g) * uw;
-      if constexpr (Dim == 3) at += (k + g) * uw * uw;
-      for (std::size_t i = 0; i < ubs; ++i) {
-        const double d = std::abs(u[at + i] - predicted[p + i]);
-        m[i] = d > m[i] ? d : m[i];
-      }
-      p += ubs;
+  for_each_interior_line<Dim>(config_.block_size, layout_.ghosts, [&](std::size_t at, std::size_t p, std::size_t, std::size_t) {
+    for (std::size_t i = 0; i < ubs; ++i) {
+      const double d = std::abs(u[at + i] - predicted[p + i]);
+      m[i] = d > m[i] ? d : m[i];
     }
+  });
   double largest = 0;
   for (std::size_t i = 0; i < ubs; ++i) largest = std::max(largest, m[i]);
   return largest;
@@ -783,24 +765,19 @@ std::vector<double> AdaptiveGrid<Dim>::field_scales(const ThresholdConfig& th) c
   if (th.normalisation == Normalisation::kAbsolute) return scale;
   std::vector<double> local(F, 0.0), global(F, 0.0);
   // Interior lines along x, each bs contiguous values (max is exact: any order gives the same).
-  const auto ubs = static_cast<std::size_t>(config_.block_size), g = static_cast<std::size_t>(layout_.ghosts);
-  const std::size_t width = ubs + 2 * g;
+  const auto ubs = static_cast<std::size_t>(config_.block_size);
   for (std::size_t f = 0; f < F; ++f)
     for (std::size_t s = 0; s < local_blocks(); ++s) {
       const double* u = data_[f].data() + s * block_volume_;
       // Lanes of a line kept apart and written as selects: packed max instructions, no chain
       // through one accumulator (NaNs ignored, as std::max over the points would).
       std::array<double, kMaxBlockSize> m{};
-      for (std::size_t k = 0; k < (Dim == 3 ? ubs : 1); ++k)
-        for (std::size_t j = 0; j < (Dim >= 2 ? ubs : 1); ++j) {
-          std::size_t at = g;
-          if constexpr (Dim >= 2) at += (j + g) * width;
-          if constexpr (Dim == 3) at += (k + g) * width * width;
-          for (std::size_t i = 0; i < ubs; ++i) {
-            const double v = std::abs(u[at + i]);
-            m[i] = v > m[i] ? v : m[i];
-          }
+      for_each_interior_line<Dim>(config_.block_size, layout_.ghosts, [&](std::size_t at, std::size_t, std::size_t, std::size_t) {
+        for (std::size_t i = 0; i < ubs; ++i) {
+          const double v = std::abs(u[at + i]);
+          m[i] = v > m[i] ? v : m[i];
         }
+      });
       for (std::size_t i = 0; i < ubs; ++i) local[f] = std::max(local[f], m[i]);
     }
   MPI_Allreduce(local.data(), global.data(), static_cast<int>(F), MPI_DOUBLE, MPI_MAX, comm_);

@@ -153,6 +153,23 @@ void child_stencils(const BlockKey<Dim>& parent, int child, const GridConfig<Dim
   }
 }
 
+/// Walks the interior lines along x of a block array (Bs + 2 ghosts per axis) in interior
+/// order: visit(at, p, j, k) with the array index `at` and interior index `p` of the line's first
+/// point, and the line's interior indices j (y) and k (z), 0 on absent axes.
+template <int Dim, class F>
+void for_each_interior_line(int bs, int ghosts, F&& visit) {
+  const auto ubs = static_cast<std::size_t>(bs), g = static_cast<std::size_t>(ghosts);
+  const std::size_t width = ubs + 2 * g;
+  std::size_t p = 0;
+  for (std::size_t k = 0; k < (Dim == 3 ? ubs : 1); ++k)
+    for (std::size_t j = 0; j < (Dim >= 2 ? ubs : 1); ++j, p += ubs) {
+      std::size_t at = g;
+      if constexpr (Dim >= 2) at += (j + g) * width;
+      if constexpr (Dim == 3) at += (k + g) * width * width;
+      visit(at, p, j, k);
+    }
+}
+
 /// Walks the interior points of a block in interior order with their array index.
 template <int Dim, class F>
 void for_each_interior(int bs, int ghosts, const ArrayShape<Dim>& shape, F&& f) {
