@@ -1431,7 +1431,7 @@ void FluidModel<Dim>::advance(double t, double dt) {
   }
   ++steps_taken_;
   stats_.t = t + dt;
-  if (flag < 0) throw NumericalFailure(fmt::format("the time integrator failed (ARKODE flag {})", flag), "", t + dt, 0);
+  if (flag < 0) throw NumericalFailure(fmt::format("the time integrator failed (flag {})", flag), "", t + dt, 0);
   grid_->fill_ghosts();
   if (adapt_now) {
     ScopedTimer timer(timers_, "coarsen");
