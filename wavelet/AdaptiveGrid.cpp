@@ -108,7 +108,7 @@ AdaptiveGrid<Dim>::AdaptiveGrid(const AdaptiveGrid& o)
       interior_points_(o.interior_points_), block_volume_(o.block_volume_), data_(o.data_),
       plan_(std::make_unique<GhostPlan>(*o.plan_)) {
   // The plan is copied, not rebuilt: the solver copies its grid every step to keep the last good
-  // state, and rebuilding the plan there cost about 7% of a 2D Navier-Stokes run.
+  // state, and rebuilding the plan there cost 7% of a 2D Navier-Stokes run in perf (11% of wall time).
 }
 
 template <int Dim>
