@@ -9,8 +9,9 @@
 //     many internal steps as rtol/atol require to cover the driver's dt; the integrator is
 //     created once and resized (ERKStepResize) when the number of local unknowns changes, reset
 //     otherwise, never rebuilt.
-// The state vector is an N_Vector_Parallel over the run's communicator, so norms for error
-// control are global and 1 and 2 ranks take the same internal steps.
+// With error control the state is an N_Vector_Parallel over the run's communicator, so its norms
+// are global and 1 and 2 ranks take the same internal steps; a fixed step is pointwise and needs
+// no communication beyond the right-hand side's.
 #include <mpi.h>
 
 #include <cstddef>
@@ -42,7 +43,7 @@ class ErkIntegrator {
   long rhs_evaluations() const;
   std::string describe() const;
 
-  struct Impl;  ///< ARKODE state (opaque: keeps SUNDIALS headers out of this one)
+  struct Impl;  ///< state vectors and ARKODE's memory (opaque: keeps SUNDIALS headers out of this one)
 
  private:
   Impl* impl_;

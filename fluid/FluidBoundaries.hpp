@@ -126,11 +126,10 @@ void fill_edge_ghosts(std::span<double* const> fields, const wavelet::ArrayShape
   const int extent = shape.extent[static_cast<std::size_t>(axis)];
   const auto period = static_cast<std::size_t>(stride) * static_cast<std::size_t>(extent);
   for (int k = 1; edge + direction * k >= 0 && edge + direction * k < extent; ++k) {
-    for (std::size_t run = static_cast<std::size_t>(edge + direction * k) * static_cast<std::size_t>(stride);
-         run < shape.size(); run += period) {
+    const int layer = edge + direction * k;  // array coordinate along `axis`
+    for (std::size_t run = static_cast<std::size_t>(layer) * static_cast<std::size_t>(stride); run < shape.size();
+         run += period) {
       for (std::size_t at = run; at < run + static_cast<std::size_t>(stride); ++at) {
-        std::array<int, Dim> i{};
-        i[static_cast<std::size_t>(axis)] = edge + direction * k;  // the only coordinate used below
         if (kind == BoundaryKind::kInflow) {
           for (std::size_t f = 0; f < fields.size(); ++f) fields[f][at] = inflow[f];
           continue;
@@ -141,7 +140,7 @@ void fill_edge_ghosts(std::span<double* const> fields, const wavelet::ArrayShape
             for (std::size_t f = 0; f < q.size(); ++f) q[f] = fields[f][index];
             return to_primitive<Dim>(q, gas.gamma);
           };
-          const auto edge_at = static_cast<std::ptrdiff_t>(at) + (edge - i[static_cast<std::size_t>(axis)]) * stride;
+          const auto edge_at = static_cast<std::ptrdiff_t>(at) + (edge - layer) * stride;
           const auto ghost = to_conserved<Dim>(
               characteristic_ghost<Dim>(primitive_at(edge_at), primitive_at(edge_at - direction * stride),
                                         far, axis, direction, k,
@@ -152,7 +151,7 @@ void fill_edge_ghosts(std::span<double* const> fields, const wavelet::ArrayShape
         }
         const bool mirror = kind == BoundaryKind::kSlipWall || is_no_slip(kind);
         const int source = mirror ? edge - direction * k : edge;
-        const auto from = static_cast<std::ptrdiff_t>(at) + (source - i[static_cast<std::size_t>(axis)]) * stride;
+        const auto from = static_cast<std::ptrdiff_t>(at) + (source - layer) * stride;
         if (kind == BoundaryKind::kNoSlipAdiabatic) {
           fields[0][at] = fields[0][from];
           for (std::size_t f = 1; f <= static_cast<std::size_t>(Dim); ++f) fields[f][at] = -fields[f][from];

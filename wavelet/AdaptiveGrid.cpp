@@ -221,13 +221,15 @@ std::span<const double> AdaptiveGrid<Dim>::block(int field, std::size_t slot) co
 }
 
 template <int Dim>
-bool AdaptiveGrid<Dim>::block_touches_low(const Key& key, int axis) const {
-  return key.coords()[static_cast<std::size_t>(axis)] == 0;
-}
-
-template <int Dim>
-bool AdaptiveGrid<Dim>::block_touches_high(const Key& key, int axis) const {
-  return key.coords()[static_cast<std::size_t>(axis)] + 1 == forest_.blocks_along(axis, key.level);
+std::array<std::array<bool, 2>, Dim> AdaptiveGrid<Dim>::bounded_edges(const Key& key) const {
+  std::array<std::array<bool, 2>, Dim> touches{};
+  const auto c = key.coords();  // once: de-interleaving the Morton code is not free
+  for (int a = 0; a < Dim; ++a) {
+    const auto au = static_cast<std::size_t>(a);
+    touches[au][0] = !config_.periodic[au] && c[au] == 0;
+    touches[au][1] = !config_.periodic[au] && c[au] + 1 == forest_.blocks_along(a, key.level);
+  }
+  return touches;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -680,9 +682,8 @@ const double* AdaptiveGrid<Dim>::predict_block(int field, std::size_t slot) cons
     if (odd_line(line, 1)) continue;
     const double* row = u + line * uw;
     double* to = along_x.data() + line * ubs;
-    // The stencil size is the interpolation order at odd points and 1 at even ones: a fixed
-    // count lets the compiler unroll the sum.
-    // Even and odd points alternate (block starts are even): two loops without a branch.
+    // Even and odd points alternate (block starts are even): a copy at even points, and at odd
+    // ones a sum of `order` terms, a fixed count the compiler unrolls.
     auto predict_row = [&]<int kOrder>() {
       for (std::size_t i = 0; i < ubs; i += 2) to[i] = 0.0 + st[0][i].w[0] * row[st[0][i].at[0]];
       for (std::size_t i = 1; i < ubs; i += 2) {
@@ -756,7 +757,6 @@ double AdaptiveGrid<Dim>::block_detail_max(int field, std::size_t slot) const {
   for (std::size_t i = 0; i < ubs; ++i) largest = std::max(largest, m[i]);
   return largest;
 }
-
 
 template <int Dim>
 std::vector<double> AdaptiveGrid<Dim>::field_scales(const ThresholdConfig& th) const {
@@ -1052,13 +1052,7 @@ void AdaptiveGrid<Dim>::rebuild(std::span<const Key> target) {
 template <int Dim>
 int AdaptiveGrid<Dim>::edge_class(const Key& key) const {
   int code = key.level;
-  const auto c = key.coords();  // once: de-interleaving the Morton code is not free
-  for (int a = 0; a < Dim; ++a) {
-    const auto au = static_cast<std::size_t>(a);
-    const bool low = !config_.periodic[au] && c[au] == 0;
-    const bool high = !config_.periodic[au] && c[au] + 1 == forest_.blocks_along(a, key.level);
-    code = code * 4 + (low ? 1 : 0) + (high ? 2 : 0);
-  }
+  for (const auto& [low, high] : bounded_edges(key)) code = code * 4 + (low ? 1 : 0) + (high ? 2 : 0);
   return code;
 }
 
@@ -1120,14 +1114,12 @@ std::pair<double, double> AdaptiveGrid<Dim>::block_bounds(int field, std::size_t
 template <int Dim>
 const DerivativeOperator<Dim>& AdaptiveGrid<Dim>::derivative_operator(std::size_t slot) const {
   const Key& key = local_keys_[slot];
+  auto& op = operators_[edge_class(key)];
+  if (op) return *op;
   DerivativeConfig dc;
   dc.accuracy = config_.derivative_accuracy;
-  for (int a = 0; a < Dim; ++a) {
-    const auto au = static_cast<std::size_t>(a);
-    dc.one_sided[au][0] = !config_.periodic[au] && block_touches_low(key, a);
-    dc.one_sided[au][1] = !config_.periodic[au] && block_touches_high(key, a);
-  }
-  auto& op = operators_[edge_class(key)];
+  const auto touches = bounded_edges(key);
+  for (int a = 0; a < Dim; ++a) dc.one_sided[static_cast<std::size_t>(a)] = touches[static_cast<std::size_t>(a)];
   if (!op) op = std::make_unique<DerivativeOperator<Dim>>(layout_, spacing(key.level), dc);
   return *op;
 }

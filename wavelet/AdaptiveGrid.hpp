@@ -186,8 +186,8 @@ class AdaptiveGrid {
   /// copied instead of resolved again.
   void build_ghost_plan(std::unique_ptr<GhostPlan> previous = nullptr, std::span<const Key> previous_keys = {});
   void refresh_partition();
-  bool block_touches_low(const Key& key, int axis) const;
-  bool block_touches_high(const Key& key, int axis) const;
+  /// Per axis, whether the block touches the low / high edge of a bounded (not periodic) axis.
+  std::array<std::array<bool, 2>, Dim> bounded_edges(const Key& key) const;
 
   GridConfig<Dim> config_;
   MPI_Comm comm_;
@@ -200,8 +200,8 @@ class AdaptiveGrid {
   std::size_t interior_points_ = 0, block_volume_ = 0;
   std::vector<std::vector<double>> data_;  // per field: local blocks x block_volume_
   std::unique_ptr<GhostPlan> plan_;
-  /// Level and, per axis, whether the block touches a bounded low / high edge of the domain:
-  /// what a block's derivative and prediction stencils depend on.
+  /// The level and bounded_edges() in one code: what a block's derivative and prediction
+  /// stencils depend on.
   int edge_class(const Key& key) const;
   /// A block's prediction stencils per axis, and the bound B of sum |weights| of its tensor
   /// stencils: every coefficient obeys |d| <= B (max u - min u) over the block with ghosts.
@@ -219,8 +219,7 @@ class AdaptiveGrid {
   mutable std::map<int, std::unique_ptr<DetailStencils>> detail_stencils_;
   /// The entry of detail_stencils_ of each local slot (cleared when the slots change).
   mutable std::vector<const DetailStencils*> slot_detail_stencils_;
-  mutable std::vector<double> scratch_;  // one block of coefficients
-  mutable std::array<std::vector<double>, Dim> stage_;  // block_details: partial predictions
+  mutable std::array<std::vector<double>, Dim> stage_;  // predict_block: partial predictions
 };
 
 template <int Dim>
@@ -266,6 +265,14 @@ int AdaptiveGrid<Dim>::adapt_to_function(const ThresholdConfig& threshold, F&& f
     }
   }
   return passes;
+}
+
+/// Makes `keep` a copy of `grid`, in place (no allocation) when it already holds a grid: how
+/// the solvers keep their last good state every step.
+template <int Dim>
+void keep_copy(std::unique_ptr<AdaptiveGrid<Dim>>& keep, const AdaptiveGrid<Dim>& grid) {
+  if (keep) *keep = grid;
+  else keep = std::make_unique<AdaptiveGrid<Dim>>(grid);
 }
 
 extern template class AdaptiveGrid<1>;

@@ -68,8 +68,7 @@ class WaveletModel : public io::System {
   void advance(double t, double dt) override;
   std::optional<std::string> check_state() const override;
   void save_good_state() override {
-    if (good_) *good_ = *grid_;  // in place: no allocation per step
-    else good_ = std::make_unique<AdaptiveGrid<Dim>>(*grid_);
+    keep_copy(good_, *grid_);
     good_stats_ = stats_;
   }
   void restore_good_state() override {
