@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """What the adaptive grid costs next to the physics, on real 2D Navier-Stokes runs: one
-adaptation cycle (refine pass before a step, coarsen pass after it, tagging included) and one
+adaptation cycle (the coarsen and refine passes after a step, tagging included) and one
 ghost fill, against one right-hand-side evaluation on the same grid. Issue 3's target: adapt +
 ghost fill <= 25% of one 2D compressible-NS RHS. The figures come from each run's summary.json
 (metrics adapt_cycle_s, ghost_fill_s, rhs_evaluation_s, adapt_ghost_over_rhs), which every fluid

@@ -4,8 +4,11 @@
 // when the scene sets no Reynolds number) with the inviscid terms in the split form of
 // SplitConvection.hpp, localised shock capturing, the viscous terms of ViscousTerms.hpp, boundary
 // conditions of FluidBoundaries.hpp, ARKODE explicit RK in time (ErkIntegrator.hpp), and the AWCM
-// cycle of 002 §2.2.2 every step (or every adapt_every steps): refine (significant blocks and their adjacent zone) -> step -> coarsen, on
-// the conserved variables (rho, rho u, E), each group normalised by its global max.
+// cycle of 002 §2.2.2 every step (or every adapt_every steps), on the conserved variables (rho,
+// rho u, E), each group normalised by its global max: the initial grid gets its safety zone
+// (significant blocks refined, their adjacent zone), then each cycle is step -> coarsen ->
+// refine, the safety zone kept where the refine pass would add it again
+// (AdaptiveGrid::adapt_cycle).
 #include <memory>
 
 #include "core/Parameters.hpp"

@@ -1,6 +1,7 @@
 #include "wavelet/AdaptiveGrid.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -106,7 +107,7 @@ AdaptiveGrid<Dim>::AdaptiveGrid(const AdaptiveGrid& o)
     : config_(o.config_), comm_(o.comm_), rank_(o.rank_), ranks_(o.ranks_), forest_(o.forest_),
       offsets_(o.offsets_), first_leaf_(o.first_leaf_), local_keys_(o.local_keys_), layout_(o.layout_),
       interior_points_(o.interior_points_), block_volume_(o.block_volume_), data_(o.data_),
-      plan_(std::make_unique<GhostPlan>(*o.plan_)) {
+      plan_(std::make_unique<GhostPlan>(*o.plan_)), layout_serial_(o.layout_serial_) {
   // The plan is copied, not rebuilt: the solver copies its grid every step to keep the last good
   // state, and rebuilding the plan there cost 7% of a 2D Navier-Stokes run in perf (11% of wall time).
 }
@@ -115,6 +116,12 @@ template <int Dim>
 AdaptiveGrid<Dim>& AdaptiveGrid<Dim>::operator=(const AdaptiveGrid& o) {
   if (this == &o) return *this;
   if (o.comm_ != comm_) throw std::invalid_argument("AdaptiveGrid: assignment across communicators");
+  data_.resize(o.data_.size());
+  for (std::size_t f = 0; f < data_.size(); ++f) data_[f].assign(o.data_[f].begin(), o.data_[f].end());
+  // The solver keeps its last good state by assignment every step; between adaptations only
+  // the values differ (copying the plan as well was 1.3% of a 2D Navier-Stokes run).
+  if (plan_ && layout_serial_ == o.layout_serial_) return *this;
+  layout_serial_ = o.layout_serial_;
   config_ = o.config_;
   rank_ = o.rank_;
   ranks_ = o.ranks_;
@@ -125,13 +132,13 @@ AdaptiveGrid<Dim>& AdaptiveGrid<Dim>::operator=(const AdaptiveGrid& o) {
   layout_ = o.layout_;
   interior_points_ = o.interior_points_;
   block_volume_ = o.block_volume_;
-  data_.resize(o.data_.size());
-  for (std::size_t f = 0; f < data_.size(); ++f) data_[f].assign(o.data_[f].begin(), o.data_[f].end());
   if (plan_) *plan_ = *o.plan_;
   else plan_ = std::make_unique<GhostPlan>(*o.plan_);
   operators_.clear();  // built again on demand, for this grid's configuration
   detail_stencils_.clear();
   slot_detail_stencils_.clear();
+  bound_rest_.clear();
+  parent_sources_.clear();
   return *this;
 }
 
@@ -144,6 +151,7 @@ void AdaptiveGrid<Dim>::refresh_partition() {
   first_leaf_ = offsets_[static_cast<std::size_t>(rank_)];
   const auto leaves = forest_.leaves();
   slot_detail_stencils_.clear();  // the slots hold other blocks now
+  bound_rest_.clear();
   local_keys_.assign(leaves.begin() + static_cast<std::ptrdiff_t>(first_leaf_),
                      leaves.begin() + static_cast<std::ptrdiff_t>(offsets_[static_cast<std::size_t>(rank_) + 1]));
 }
@@ -358,6 +366,8 @@ struct PointResolver {
 
 template <int Dim>
 void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, std::span<const Key> previous_keys) {
+  static std::atomic<std::uint64_t> serials{0};
+  layout_serial_ = ++serials;
   plan_ = std::make_unique<GhostPlan>();
   GhostPlan& plan = *plan_;
   std::vector<Key> found;
@@ -651,16 +661,15 @@ std::array<std::int64_t, 4> AdaptiveGrid<Dim>::ghost_counts() const {
 // Wavelet coefficients.
 
 template <int Dim>
-const double* AdaptiveGrid<Dim>::predict_block(int field, std::size_t slot) const {
+const double* AdaptiveGrid<Dim>::predict_array(const double* u, const DetailStencils& stencils) const {
   // d = u - P u_{j-1} in separable form: predict along x on every line of the array (ghost lines
   // included), then along y from those values, then along z. These are the products and sums of
   // tensor_sum (x innermost, each partial sum started at 0 and accumulated in stencil order), so
   // every coefficient is bitwise the point-by-point one, but a tensor row is summed once per line
   // instead of once per point that reads it (the adaptation's tagging was mostly this).
-  const auto& st = block_detail_stencils(slot).axis;
+  const auto& st = stencils.axis;
   const int bs = config_.block_size, g = layout_.ghosts, width = bs + 2 * g;
   const auto ubs = static_cast<std::size_t>(bs), uw = static_cast<std::size_t>(width);
-  const double* u = block(field, slot).data();
   // stage[a]: axes 0..a predicted (extent bs), the others still whole array lines (extent width).
   std::size_t lines = 1;
   for (int a = 1; a < Dim; ++a) lines *= uw;
@@ -725,10 +734,11 @@ const double* AdaptiveGrid<Dim>::predict_block(int field, std::size_t slot) cons
 
 template <int Dim>
 void AdaptiveGrid<Dim>::block_details(int field, std::size_t slot, std::span<double> out) const {
-  const double* predicted = predict_block(field, slot);
-  const auto& st = block_detail_stencils(slot).axis;
-  const auto ubs = static_cast<std::size_t>(config_.block_size);
+  const auto& stencils = block_detail_stencils(slot);
   const double* u = block(field, slot).data();
+  const double* predicted = predict_array(u, stencils);
+  const auto& st = stencils.axis;
+  const auto ubs = static_cast<std::size_t>(config_.block_size);
   for_each_interior_line<Dim>(config_.block_size, layout_.ghosts, [&](std::size_t at, std::size_t p, std::size_t j, std::size_t k) {
     bool line_even = true;
     if constexpr (Dim >= 2) line_even = st[1][j].size == 1;
@@ -740,22 +750,37 @@ void AdaptiveGrid<Dim>::block_details(int field, std::size_t slot, std::span<dou
 
 template <int Dim>
 double AdaptiveGrid<Dim>::block_detail_max(int field, std::size_t slot) const {
+  return detail_maxima(block(field, slot).data(), block_detail_stencils(slot)).first;
+}
+
+template <int Dim>
+std::pair<double, double> AdaptiveGrid<Dim>::detail_maxima(const double* u, const DetailStencils& stencils) const {
   // As block_details, without storing them: lanes of |u - P u| kept apart (packed maxima; NaNs
   // ignored, as std::max over the coefficients would). At all-even points u - P u is exactly 0
-  // (P is the identity there), so no point needs to be singled out.
-  const double* predicted = predict_block(field, slot);
+  // (P is the identity there), so no point needs to be singled out. The near maximum leaves out
+  // lines and lanes whose rows are not all `near` (as selects: a product by 0 or 1 would let
+  // the NaN or Inf of an unread point through).
+  const double* predicted = predict_array(u, stencils);
   const auto ubs = static_cast<std::size_t>(config_.block_size);
-  const double* u = block(field, slot).data();
-  std::array<double, kMaxBlockSize> m{};
-  for_each_interior_line<Dim>(config_.block_size, layout_.ghosts, [&](std::size_t at, std::size_t p, std::size_t, std::size_t) {
+  const auto& near = stencils.near;
+  std::array<double, kMaxBlockSize> all{}, inner{};
+  for_each_interior_line<Dim>(config_.block_size, layout_.ghosts, [&](std::size_t at, std::size_t p, std::size_t j, std::size_t k) {
+    bool near_line = true;
+    if constexpr (Dim >= 2) near_line = near[1][j];
+    if constexpr (Dim == 3) near_line = near_line && near[2][k];
     for (std::size_t i = 0; i < ubs; ++i) {
       const double d = std::abs(u[at + i] - predicted[p + i]);
-      m[i] = d > m[i] ? d : m[i];
+      all[i] = d > all[i] ? d : all[i];
+      const double dn = near_line && near[0][i] ? d : 0.0;
+      inner[i] = dn > inner[i] ? dn : inner[i];
     }
   });
-  double largest = 0;
-  for (std::size_t i = 0; i < ubs; ++i) largest = std::max(largest, m[i]);
-  return largest;
+  double largest = 0, largest_near = 0;
+  for (std::size_t i = 0; i < ubs; ++i) {
+    largest = std::max(largest, all[i]);
+    largest_near = std::max(largest_near, inner[i]);
+  }
+  return {largest, largest_near};
 }
 
 template <int Dim>
@@ -816,7 +841,140 @@ std::int64_t AdaptiveGrid<Dim>::significant_points(const ThresholdConfig& th) co
 // Adaptation.
 
 template <int Dim>
+const std::vector<Neighbour<Dim>>& AdaptiveGrid<Dim>::leaf_neighbours(std::size_t leaf) const {
+  // Each pass of a cycle asks for the same leaves' neighbours (which leaves are open, the
+  // adjacent zone); the forest only changes with the layout.
+  if (neighbour_serial_ != layout_serial_ || neighbours_.size() != forest_.size()) {
+    neighbours_.assign(forest_.size(), {});
+    neighbours_known_.assign(forest_.size(), 0);
+    neighbour_serial_ = layout_serial_;
+  }
+  if (!neighbours_known_[leaf]) {
+    forest_.neighbours(forest_.leaves()[leaf], neighbours_[leaf]);
+    neighbours_known_[leaf] = 1;
+  }
+  return neighbours_[leaf];
+}
+
+template <int Dim>
+void AdaptiveGrid<Dim>::gather_leaf_flags(std::span<const char> local, std::span<char> all) const {
+  std::vector<int> counts(static_cast<std::size_t>(ranks_)), firsts(static_cast<std::size_t>(ranks_));
+  for (std::size_t r = 0; r < counts.size(); ++r) {
+    counts[r] = static_cast<int>(offsets_[r + 1] - offsets_[r]);
+    firsts[r] = static_cast<int>(offsets_[r]);
+  }
+  MPI_Allgatherv(local.data(), static_cast<int>(local.size()), MPI_CHAR, all.data(), counts.data(), firsts.data(),
+                 MPI_CHAR, comm_);
+}
+
+template <int Dim>
+std::pair<bool, bool> AdaptiveGrid<Dim>::block_significance(std::size_t slot, const ThresholdConfig& th,
+                                                            std::span<const double> scale) const {
+  bool any = false, near = false, bound_decided = false;
+  // Where the range bound decided nothing last time (every field's coefficients were computed),
+  // it is not tried for the next few calls: it rarely decides sooner on such a block, and costs
+  // a pass over the block's values per field.
+  if (bound_rest_.size() != local_blocks()) bound_rest_.assign(local_blocks(), 0);
+  const bool try_bound = bound_rest_[slot] == 0;
+  if (!try_bound) --bound_rest_[slot];
+  for (int f = 0; f < fields() && !(any && near); ++f) {
+    if (!th.groups.empty() && th.groups[static_cast<std::size_t>(f)] < 0) continue;
+    const double threshold = th.epsilon * scale[static_cast<std::size_t>(f)];
+    // A block whose whole range of values bounds every coefficient below the threshold is
+    // insignificant without computing them (most of a far field). The margin covers the
+    // rounding of the computed coefficients, so no decision differs from computing them.
+    if (try_bound) {
+      const auto [low, high] = block_bounds(f, slot);
+      const double rounding = 1e-12 * std::max(std::abs(low), std::abs(high));
+      if (block_detail_stencils(slot).bound * (high - low) * (1 + 1e-12) + rounding < threshold) {
+        bound_decided = true;
+        continue;
+      }
+    }
+    const auto [largest, largest_near] = detail_maxima(block(f, slot).data(), block_detail_stencils(slot));
+    any = any || largest > threshold;
+    near = near || largest_near > threshold;
+  }
+  if (try_bound && !bound_decided) bound_rest_[slot] = 8;
+  return {any, near};
+}
+
+template <int Dim>
+bool AdaptiveGrid<Dim>::parent_significant(const Key& parent, const ThresholdConfig& th,
+                                           std::span<const double> scale) const {
+  // The parent's array as coarsening would make it: its interior points are the children's
+  // all-even points (injection), and the ghost layers the children's ghosts reach are their
+  // ghosts' all-even points. Each such ghost is the value at the same point of the level the
+  // parent's own ghost would resolve to (a finer leaf injects it, a coarser one predicts it),
+  // so the near coefficients come out bitwise as the refine pass will compute them on the
+  // parent (unless a neighbour coarsens in the same pass). Points no child reaches are 0 and
+  // unread by near rows.
+  const int bs = config_.block_size, g = layout_.ghosts;
+  const auto shape = layout_.shape();
+  const DetailStencils& stencils = detail_stencils_of(parent);
+  std::array<std::size_t, Key::kChildren> child_slot{};
+  for (int k = 0; k < Key::kChildren; ++k) {
+    const std::size_t leaf = *forest_.find(parent.child(k));
+    if (leaf < first_leaf_ || leaf >= first_leaf_ + local_blocks())
+      throw std::logic_error("AdaptiveGrid: a family of leaves is split across ranks");
+    child_slot[static_cast<std::size_t>(k)] = leaf - first_leaf_;
+  }
+  parent_array_.resize(block_volume_);
+  if (parent_sources_.empty()) {
+    // Per array point: the child and its array index, or child -1 where no child reaches.
+    parent_sources_.assign(block_volume_, {-1, 0});
+    for (std::size_t p = 0; p < block_volume_; ++p) {
+      const auto i = shape.coords(static_cast<std::ptrdiff_t>(p));
+      int child = 0;
+      Index q{};
+      bool reached = true;
+      for (int a = 0; a < Dim; ++a) {
+        const auto au = static_cast<std::size_t>(a);
+        const int fine = 2 * (i[au] - g);  // index along a in the family, children's level
+        const int side = fine >= bs ? 1 : 0;
+        const int local = fine - side * bs;
+        reached = reached && local >= -g && local < bs + g;
+        child |= side << a;
+        q[au] = local + g;
+      }
+      if (reached) parent_sources_[p] = {child, shape.index(q)};
+    }
+  }
+  for (int f = 0; f < fields(); ++f) {
+    if (!th.groups.empty() && th.groups[static_cast<std::size_t>(f)] < 0) continue;
+    std::array<const double*, Key::kChildren> from{};
+    for (std::size_t k = 0; k < from.size(); ++k)
+      from[k] = data_[static_cast<std::size_t>(f)].data() + child_slot[k] * block_volume_;
+    for (std::size_t p = 0; p < block_volume_; ++p) {
+      const auto [child, at] = parent_sources_[p];
+      parent_array_[p] = child < 0 ? 0.0 : from[static_cast<std::size_t>(child)][at];
+    }
+    if (detail_maxima(parent_array_.data(), stencils).second > th.epsilon * scale[static_cast<std::size_t>(f)]) return true;
+  }
+  return false;
+}
+
+template <int Dim>
 AdaptCounts AdaptiveGrid<Dim>::adapt(const ThresholdConfig& th, AdaptPass pass, const ForcedRegion<Dim>& forced) {
+  return adapt_pass(th, pass, forced, false, nullptr);
+}
+
+template <int Dim>
+AdaptCounts AdaptiveGrid<Dim>::adapt_cycle(const ThresholdConfig& th, const ForcedRegion<Dim>& forced) {
+  // The refine pass's significance is computed in the coarsen pass's sweep (one prediction per
+  // block and field gives both maxima). It is still valid if the coarsen pass changed nothing,
+  // the usual case once the grid has settled (the coarsen pass keeps what the refine pass would
+  // add again); otherwise the refine pass computes it afresh.
+  std::vector<char> near_sig;
+  const AdaptCounts coarsened = adapt_pass(th, AdaptPass::kCoarsen, forced, true, &near_sig);
+  const bool unchanged = coarsened.refined == 0 && coarsened.coarsened == 0;
+  const AdaptCounts refined = adapt_pass(th, AdaptPass::kRefine, forced, true, unchanged ? &near_sig : nullptr);
+  return {coarsened.refined + refined.refined, coarsened.coarsened + refined.coarsened};
+}
+
+template <int Dim>
+AdaptCounts AdaptiveGrid<Dim>::adapt_pass(const ThresholdConfig& th, AdaptPass pass, const ForcedRegion<Dim>& forced,
+                                          bool cycle, std::vector<char>* refine_sig) {
   const std::size_t n = forest_.size();
   const auto leaves = forest_.leaves();
   std::vector<char> force(n, 0), near_sig(n, 0);
@@ -834,53 +992,56 @@ AdaptCounts AdaptiveGrid<Dim>::adapt(const ThresholdConfig& th, AdaptPass pass, 
   // tested: the tags come out the same, without computing coefficients the pass cannot use
   // (typically a far field at the coarsest level, in the coarsen pass).
   std::vector<Neighbour<Dim>> around;
-  auto own_tag_open = [&](std::size_t l) {
-    return !force[l] && (pass == AdaptPass::kRefine ? leaves[l].level < config_.max_level
-                                                    : leaves[l].level > config_.min_level);
+  auto needed_in = [&](AdaptPass p) {
+    auto own_tag_open = [&](std::size_t l) {
+      return !force[l] && (p == AdaptPass::kRefine ? leaves[l].level < config_.max_level
+                                                   : leaves[l].level > config_.min_level);
+    };
+    std::vector<char> needed(n, 0);
+    for (std::size_t l = first_leaf_; l < first_leaf_ + local_blocks(); ++l) {
+      needed[l] = own_tag_open(l);
+      if (needed[l] || !th.adjacent_blocks) continue;
+      for (const auto& nb : leaf_neighbours(l))
+        if ((p == AdaptPass::kCoarsen || nb.level_difference <= 0) && own_tag_open(*forest_.find(nb.key))) {
+          needed[l] = 1;
+          break;
+        }
+    }
+    return needed;
   };
-  std::vector<char> needed(n, 0);
-  for (std::size_t l = first_leaf_; l < first_leaf_ + local_blocks(); ++l) {
-    needed[l] = own_tag_open(l);
-    if (needed[l] || !th.adjacent_blocks) continue;
-    forest_.neighbours(leaves[l], around);
-    for (const auto& nb : around)
-      if ((pass == AdaptPass::kCoarsen || nb.level_difference <= 0) && own_tag_open(*forest_.find(nb.key))) {
-        needed[l] = 1;
-        break;
-      }
-  }
 
-  // 1. Tag: significance of this rank's blocks, gathered so every rank sees every leaf.
-  const auto scale = field_scales(th);
-  std::vector<char> local_sig(local_blocks(), 0);
-  for (std::size_t s = 0; s < local_blocks(); ++s) {
-    if (!needed[first_leaf_ + s]) continue;
-    for (int f = 0; f < fields() && !local_sig[s]; ++f) {
-      if (!th.groups.empty() && th.groups[static_cast<std::size_t>(f)] < 0) continue;
-      const double threshold = th.epsilon * scale[static_cast<std::size_t>(f)];
-      // A block whose whole range of values bounds every coefficient below the threshold is
-      // insignificant without computing them (most of a far field). The margin covers the
-      // rounding of the computed coefficients, so no decision differs from computing them.
-      const auto [low, high] = block_bounds(f, s);
-      const double rounding = 1e-12 * std::max(std::abs(low), std::abs(high));
-      if (block_detail_stencils(s).bound * (high - low) * (1 + 1e-12) + rounding < threshold) continue;
-      local_sig[s] = block_detail_max(f, s) > threshold;
+  // 1. Tag: significance of this rank's blocks, gathered so every rank sees every leaf. In a
+  // cycle, the refine pass counts only the `near` points (see parent_significant): its tags are
+  // then the ones the coarsen pass can foresee, and what that coarsens stays coarse.
+  const bool reuse = cycle && pass == AdaptPass::kRefine && refine_sig && refine_sig->size() == n;
+  const bool share = cycle && pass == AdaptPass::kCoarsen && refine_sig;
+  std::vector<double> scale;
+  std::vector<char> sig(n, 0);
+  if (reuse) {
+    sig = *refine_sig;
+  } else {
+    scale = field_scales(th);
+    const auto needed = needed_in(pass);
+    const auto needed_later = share ? needed_in(AdaptPass::kRefine) : std::vector<char>{};
+    std::vector<char> local_sig(local_blocks(), 0), local_near(share ? local_blocks() : 0, 0);
+    for (std::size_t s = 0; s < local_blocks(); ++s) {
+      const bool now = needed[first_leaf_ + s] != 0, later = share && needed_later[first_leaf_ + s] != 0;
+      if (!now && !later) continue;
+      const auto [any, near] = block_significance(s, th, scale);
+      local_sig[s] = cycle && pass == AdaptPass::kRefine ? near : now && any;
+      if (later) local_near[s] = near;
+    }
+    gather_leaf_flags(local_sig, sig);
+    if (share) {
+      refine_sig->assign(n, 0);
+      gather_leaf_flags(local_near, *refine_sig);
     }
   }
-  std::vector<char> sig(n, 0);
-  std::vector<int> counts(static_cast<std::size_t>(ranks_)), firsts(static_cast<std::size_t>(ranks_));
-  for (std::size_t r = 0; r < counts.size(); ++r) {
-    counts[r] = static_cast<int>(offsets_[r + 1] - offsets_[r]);
-    firsts[r] = static_cast<int>(offsets_[r]);
-  }
-  MPI_Allgatherv(local_sig.data(), static_cast<int>(local_sig.size()), MPI_CHAR, sig.data(), counts.data(),
-                 firsts.data(), MPI_CHAR, comm_);
 
   if (th.adjacent_blocks)
     for (std::size_t l = 0; l < n; ++l) {
       if (!sig[l]) continue;
-      forest_.neighbours(leaves[l], around);
-      for (const auto& nb : around)
+      for (const auto& nb : leaf_neighbours(l))
         if (pass == AdaptPass::kCoarsen || nb.level_difference <= 0) near_sig[*forest_.find(nb.key)] = 1;
     }
   std::vector<AdaptTag> tags(n, AdaptTag::kKeep);
@@ -891,6 +1052,38 @@ AdaptCounts AdaptiveGrid<Dim>::adapt(const ThresholdConfig& th, AdaptPass pass, 
       tags[l] = AdaptTag::kCoarsen;
     }
   }
+  if (cycle && pass == AdaptPass::kCoarsen) {
+    // Adjacency in scale: a family whose parent the cycle's refine pass would refine is kept
+    // (a lone coarsen pass, as adapt_to_function makes, keeps only what is significant). The
+    // partition never splits a family of leaves, so each is judged by the rank holding it.
+    std::vector<char> local_keep(local_blocks(), 0), keep(n, 0);
+    for (std::size_t l = first_leaf_; l < first_leaf_ + local_blocks(); ++l) {
+      const Key& key = leaves[l];
+      if (key.level == 0 || key.child_index() != 0 || tags[l] != AdaptTag::kCoarsen) continue;
+      bool family = true;
+      for (int k = 1; k < Key::kChildren && family; ++k) {
+        const auto sibling = forest_.find(key.parent().child(k));
+        family = sibling && tags[*sibling] == AdaptTag::kCoarsen;
+      }
+      if (family && parent_significant(key.parent(), th, scale)) local_keep[l - first_leaf_] = 1;
+    }
+    gather_leaf_flags(local_keep, keep);
+    // Adjacency in space: the refine pass also refines the same-or-coarser neighbours of a
+    // block it refines for significance, so the families holding them are kept as well (the
+    // leaves facing a kept parent whose parent is no finer than it). Every rank has every flag.
+    std::vector<char> kept(n, 0);
+    for (std::size_t l = 0; l < n; ++l) {
+      if (!keep[l]) continue;
+      const Key parent = leaves[l].parent();
+      kept[l] = 1;
+      if (!th.adjacent_blocks) continue;
+      forest_.neighbours(parent, around);
+      for (const auto& nb : around)
+        if (nb.key.level >= 1 && nb.key.level <= parent.level + 1) kept[*forest_.find(nb.key)] = 1;
+    }
+    for (std::size_t l = 0; l < n; ++l)
+      if (kept[l]) tags[l] = AdaptTag::kKeep;  // one member kept: the family stays
+  }
   // 2-6. Refine, coarsen, balance, repartition, ghosts.
   return adapt_with_tags(tags);
 }
@@ -899,11 +1092,23 @@ template <int Dim>
 AdaptCounts AdaptiveGrid<Dim>::adapt_with_tags(std::span<const AdaptTag> tags) {
   // Nothing to refine (below the finest level) and nothing to coarsen: the forest stays as it
   // is, without copying it to find out.
-  bool may_change = false;
+  // A coarsen tag changes something only if the leaf's whole family asks for it (a settled
+  // cycle's coarsen pass tags many leaves whose families it keeps).
+  const auto leaves = forest_.leaves();
+  auto family_coarsens = [&](std::size_t l) {
+    const Key& key = leaves[l];
+    if (key.level == 0) return false;
+    for (int k = 0; k < Key::kChildren; ++k) {
+      const auto member = forest_.find(key.parent().child(k));
+      if (!member || tags[*member] != AdaptTag::kCoarsen) return false;
+    }
+    return true;
+  };
+  bool may_change = tags.size() != forest_.size();
   for (std::size_t l = 0; l < tags.size() && !may_change; ++l)
-    may_change = tags[l] == AdaptTag::kCoarsen ||
-                 (tags[l] == AdaptTag::kRefine && forest_.leaves()[l].level < config_.max_level);
-  if (!may_change && tags.size() == forest_.size()) return {};
+    may_change = (tags[l] == AdaptTag::kCoarsen && leaves[l].child_index() == 0 && family_coarsens(l)) ||
+                 (tags[l] == AdaptTag::kRefine && leaves[l].level < config_.max_level);
+  if (!may_change) return {};
   BlockForest<Dim> next = forest_;
   const AdaptCounts counts = next.adapt(tags);  // refine, coarsen, 2:1 balance
   if (counts.refined == 0 && counts.coarsened == 0) return counts;  // same blocks, same ghosts
@@ -1057,31 +1262,45 @@ int AdaptiveGrid<Dim>::edge_class(const Key& key) const {
 }
 
 template <int Dim>
-const typename AdaptiveGrid<Dim>::DetailStencils& AdaptiveGrid<Dim>::block_detail_stencils(std::size_t slot) const {
+const typename AdaptiveGrid<Dim>::DetailStencils& AdaptiveGrid<Dim>::detail_stencils_of(const Key& key) const {
   // Block starts are even (Bs is even), and only blocks on a bounded edge of the domain use
   // one-sided rows, so the stencils in array coordinates depend on the edge class alone.
+  auto& cached = detail_stencils_[edge_class(key)];
+  if (cached) return *cached;
+  cached = std::make_unique<DetailStencils>();
+  detail_stencils<Dim>(key, config_, layout_.ghosts, cached->axis);
+  // Each 1D row sums to 1 (it reproduces constants), so d = sum_k w_k (u - u_k) and
+  // |d| <= sum |w| (max - min); the tensor sum of |w| is the product of the rows' sums.
+  const int bs = config_.block_size, g = layout_.ghosts;
+  // The children of this block as a family hold its level's points on their interiors and, in
+  // their ghosts (g layers of the finer level), floor(g / 2) of its layers below and ceil(g / 2)
+  // above (block starts are even); `near` rows read nothing beyond those.
+  const int reach_low = g - g / 2, reach_high = g + bs - 1 + (g + 1) / 2;
+  for (int a = 0; a < Dim; ++a) {
+    const auto& rows = cached->axis[static_cast<std::size_t>(a)];
+    double widest = 1;
+    for (int i = 0; i < bs; ++i) {
+      const AxisStencil& row = rows[static_cast<std::size_t>(i)];
+      double sum = 0;
+      bool near = true;
+      for (int k = 0; k < row.size; ++k) {
+        sum += std::abs(row.w[static_cast<std::size_t>(k)]);
+        const int at = row.at[static_cast<std::size_t>(k)];
+        near = near && at >= reach_low && at <= reach_high;
+      }
+      widest = std::max(widest, sum);
+      cached->near[static_cast<std::size_t>(a)][static_cast<std::size_t>(i)] = near;
+    }
+    cached->bound *= widest;
+  }
+  return *cached;
+}
+
+template <int Dim>
+const typename AdaptiveGrid<Dim>::DetailStencils& AdaptiveGrid<Dim>::block_detail_stencils(std::size_t slot) const {
   if (slot_detail_stencils_.size() != local_keys_.size()) slot_detail_stencils_.assign(local_keys_.size(), nullptr);
   if (const auto* known = slot_detail_stencils_[slot]) return *known;
-  const Key& key = local_keys_[slot];
-  auto& cached = detail_stencils_[edge_class(key)];
-  if (!cached) {
-    cached = std::make_unique<DetailStencils>();
-    detail_stencils<Dim>(key, config_, layout_.ghosts, cached->axis);
-    // Each 1D row sums to 1 (it reproduces constants), so d = sum_k w_k (u - u_k) and
-    // |d| <= sum |w| (max - min); the tensor sum of |w| is the product of the rows' sums.
-    for (const auto& rows : cached->axis) {
-      double widest = 1;
-      for (int i = 0; i < config_.block_size; ++i) {
-        const AxisStencil& row = rows[static_cast<std::size_t>(i)];
-        double sum = 0;
-        for (int k = 0; k < row.size; ++k) sum += std::abs(row.w[static_cast<std::size_t>(k)]);
-        widest = std::max(widest, sum);
-      }
-      cached->bound *= widest;
-    }
-  }
-  slot_detail_stencils_[slot] = cached.get();
-  return *cached;
+  return *(slot_detail_stencils_[slot] = &detail_stencils_of(local_keys_[slot]));
 }
 
 template <int Dim>

@@ -30,6 +30,16 @@
 // touches and that lies outside the forced region, is coarsened (coarsen pass). New points are
 // filled by P, removed points restricted by injection.
 //
+// A time-stepping solver adapts by cycles (adapt_cycle): a coarsen pass, then a refine pass, on
+// the same data. Lone passes would coarsen the adjacent zone in scale the refine pass adds
+// (its children are insignificant) and add it again the next cycle, rebuilding the same blocks
+// and ghost plan every step. In a cycle the coarsen pass keeps a family whose parent the refine
+// pass would refine: it can tell from the children alone, because in a cycle the refine pass
+// counts only the points whose prediction stencils the children's ghosts reach ("near" points,
+// all but the odd points next to an open block edge; a feature there is within the stencils of
+// the next near point of this block or its neighbour). A settled grid then stays as it is, and
+// the error control is the coarsen pass's, unchanged.
+//
 // Storage. Each field is one array of local blocks; a block is an ArrayShape of Bs + 2g points
 // per axis (g ghost layers, by default the least that prediction and derivatives read:
 // max(order - 1, accuracy / 2)).
@@ -157,6 +167,13 @@ class AdaptiveGrid {
   /// Ghosts must be filled on entry and are filled on return. Returns the global counts.
   AdaptCounts adapt(const ThresholdConfig& threshold, AdaptPass pass,
                     const ForcedRegion<Dim>& forced = {});
+  /// A coarsen pass and then a refine pass on the same data: a time-stepping solver's
+  /// adaptation between two steps. Unlike two lone passes, the grid keeps its safety zone in
+  /// scale: the refine pass tests near points only and the coarsen pass keeps every family
+  /// whose parent that would refine, so a settled grid is left as it is instead of being
+  /// coarsened and refined again every cycle; and the coefficients are computed once when the
+  /// coarsen pass changes nothing. Ghosts must be filled on entry and are filled on return.
+  AdaptCounts adapt_cycle(const ThresholdConfig& threshold, const ForcedRegion<Dim>& forced = {});
   /// Refine -> coarsen -> balance (BlockForest::adapt) with one tag per global leaf (identical
   /// on all ranks), new points by interpolation / injection, repartition, ghost rebuild.
   AdaptCounts adapt_with_tags(std::span<const AdaptTag> tags);
@@ -200,26 +217,60 @@ class AdaptiveGrid {
   std::size_t interior_points_ = 0, block_volume_ = 0;
   std::vector<std::vector<double>> data_;  // per field: local blocks x block_volume_
   std::unique_ptr<GhostPlan> plan_;
+  /// Drawn afresh (process-wide) whenever the ghost plan is built; copies share it, so an
+  /// assignment between grids with the same layout copies only the field data.
+  std::uint64_t layout_serial_ = 0;
   /// The level and bounded_edges() in one code: what a block's derivative and prediction
   /// stencils depend on.
   int edge_class(const Key& key) const;
   /// A block's prediction stencils per axis, and the bound B of sum |weights| of its tensor
   /// stencils: every coefficient obeys |d| <= B (max u - min u) over the block with ghosts.
+  /// `near[a][i]`: the row of interior index i along axis a reads only points a family of
+  /// children can supply for this block as their parent (see parent_significant).
   struct DetailStencils {
     std::array<std::array<AxisStencil, kMaxBlockSize>, Dim> axis;
+    std::array<std::array<bool, kMaxBlockSize>, Dim> near{};
     double bound = 1;
   };
+  const DetailStencils& detail_stencils_of(const Key& key) const;
   const DetailStencils& block_detail_stencils(std::size_t slot) const;
-  /// P u at a block's interior points (interior order): the prediction from its even points,
-  /// u itself at all-even points. Points into a scratch buffer, valid until the next call.
-  const double* predict_block(int field, std::size_t slot) const;
+  /// P u at the interior points (interior order) of a block array u with stencils st: the
+  /// prediction from its even points, u itself at all-even points. Points into a scratch
+  /// buffer, valid until the next call.
+  const double* predict_array(const double* u, const DetailStencils& st) const;
+  /// Largest |u - P u| over the interior points of a block array, and over its near points
+  /// (those whose rows are all `near`).
+  std::pair<double, double> detail_maxima(const double* u, const DetailStencils& st) const;
+  /// Whether the parent of a local family of leaves would be significant in the refine pass's
+  /// sense (near points only, any field above its threshold), from the children's values and
+  /// ghosts alone: the refine pass refines exactly such a parent, so the coarsen pass keeps the
+  /// family instead of coarsening it only to see it refined again before the next step.
+  bool parent_significant(const Key& parent, const ThresholdConfig& th, std::span<const double> scale) const;
+  /// Whether a local block holds a significant point (any field above its threshold), and
+  /// whether it holds one among its near points.
+  std::pair<bool, bool> block_significance(std::size_t slot, const ThresholdConfig& th,
+                                           std::span<const double> scale) const;
+  /// One adaptation pass, alone or as part of adapt_cycle (refine_sig: the refine pass's
+  /// significance, computed by the coarsen pass, used by the refine pass).
+  AdaptCounts adapt_pass(const ThresholdConfig& th, AdaptPass pass, const ForcedRegion<Dim>& forced, bool cycle,
+                         std::vector<char>* refine_sig);
+  /// The neighbours of a leaf (index into the forest's leaves), cached for the current layout.
+  const std::vector<Neighbour<Dim>>& leaf_neighbours(std::size_t leaf) const;
+  mutable std::vector<std::vector<Neighbour<Dim>>> neighbours_;
+  mutable std::vector<char> neighbours_known_;
+  mutable std::uint64_t neighbour_serial_ = 0;
+  /// One flag per local block -> one per global leaf, on every rank.
+  void gather_leaf_flags(std::span<const char> local, std::span<char> all) const;
   /// min u and max u of a field over a block's array, ghosts included (NaNs ignored).
   std::pair<double, double> block_bounds(int field, std::size_t slot) const;
   mutable std::map<int, std::unique_ptr<DerivativeOperator<Dim>>> operators_;
   mutable std::map<int, std::unique_ptr<DetailStencils>> detail_stencils_;
   /// The entry of detail_stencils_ of each local slot (cleared when the slots change).
   mutable std::vector<const DetailStencils*> slot_detail_stencils_;
-  mutable std::array<std::vector<double>, Dim> stage_;  // predict_block: partial predictions
+  mutable std::array<std::vector<double>, Dim> stage_;  // predict_array: partial predictions
+  mutable std::vector<double> parent_array_;             // parent_significant: the assembled parent
+  mutable std::vector<std::pair<int, std::ptrdiff_t>> parent_sources_;  // ... and where its points come from
+  mutable std::vector<std::uint8_t> bound_rest_;  // block_significance: calls left without the range bound
 };
 
 template <int Dim>

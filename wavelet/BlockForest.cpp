@@ -290,8 +290,26 @@ template <int Dim>
 std::vector<std::size_t> BlockForest<Dim>::partition(int ranks) const {
   if (ranks < 1) throw std::invalid_argument("BlockForest::partition: need at least one rank");
   std::vector<std::size_t> offsets(static_cast<std::size_t>(ranks) + 1);
-  for (int r = 0; r <= ranks; ++r)
-    offsets[static_cast<std::size_t>(r)] = leaves_.size() * static_cast<std::size_t>(r) / static_cast<std::size_t>(ranks);
+  const std::size_t n = leaves_.size();
+  auto siblings = [&](std::size_t i) {  // leaves i - 1 and i are siblings
+    return leaves_[i].level > 0 && leaves_[i - 1].level == leaves_[i].level && leaves_[i - 1].parent() == leaves_[i].parent();
+  };
+  for (int r = 0; r <= ranks; ++r) {
+    const std::size_t even = n * static_cast<std::size_t>(r) / static_cast<std::size_t>(ranks);
+    // Siblings are consecutive on the curve; a cut between two of them moves to the nearer end
+    // of their run, so a family of leaves is never split (the coarsen pass of a cycle judges a
+    // family's parent from the children's data on one rank, as p4est's partition for
+    // coarsening does).
+    const std::size_t floor = r > 0 ? offsets[static_cast<std::size_t>(r) - 1] : 0;
+    std::size_t at = even;
+    if (at > 0 && at < n && siblings(at)) {
+      std::size_t back = at, ahead = at;
+      while (back > 0 && siblings(back)) --back;
+      while (ahead < n && siblings(ahead)) ++ahead;
+      at = ahead - at < at - back || back < floor ? ahead : back;
+    }
+    offsets[static_cast<std::size_t>(r)] = at;
+  }
   return offsets;
 }
 

@@ -91,7 +91,8 @@ class BlockForest {
 
   /// Position along the configured curve, comparable across levels.
   std::uint64_t curve_index(const Key& key) const;
-  /// P+1 offsets into leaves(): rank r owns [offsets[r], offsets[r+1]); chunk sizes differ by <= 1.
+  /// P+1 offsets into leaves(): rank r owns [offsets[r], offsets[r+1]); equal chunks but for
+  /// cuts moved to the nearer end of a family of leaves they would split (at most 2^Dim / 2).
   std::vector<std::size_t> partition(int ranks) const;
 
  private:

@@ -72,8 +72,12 @@ def vortex_error_decreases_with_eps():
         fractions.append(s["metrics"]["points_fraction"])
         print(f"eps {eps:.0e}: L1 rho {errors[-1]:.3e}, points fraction {fractions[-1]:.3f}")
     expect(all(a > b for a, b in zip(errors, errors[1:])), f"L1 rho decreases monotonically as eps decreases {errors}")
-    expect(all(a <= b for a, b in zip(fractions, fractions[1:])) and fractions[0] < 1,
-           f"the grid keeps fewer points at larger eps {fractions}")
+    # The grid includes its safety zone (a level above every significant block, and around it).
+    # Where the finest level caps that zone for the smallest eps, a middle eps can hold more
+    # points (here 1e-3: level-2 details above eps refine to level 3; 1e-4: level-3 details,
+    # about 16 times smaller, decide, and nothing goes beyond level 3), so only the ends compare.
+    expect(fractions[0] < fractions[-1] and max(fractions) < 1,
+           f"the grid keeps fewer points at the largest eps than at the smallest, all below uniform {fractions}")
 
 
 def conservation_with_capturing():

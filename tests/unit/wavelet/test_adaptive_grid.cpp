@@ -312,6 +312,51 @@ TEST(AdaptiveGrid, ReusedGhostRowsMatchAFreshPlan2D) {
 }
 TEST(AdaptiveGrid, ReusedGhostRowsMatchAFreshPlan3D) { reused_ghost_rows_match_a_fresh_plan<3>(false); }
 
+// A time-stepping solver adapts by cycles: a coarsen pass, then a refine pass, on the same
+// data. Two lone passes on data that does not change coarsen the safety zone the refine pass
+// adds and refine it again, every cycle. A cycle's coarsen pass keeps the families whose parent
+// its refine pass would refine, so once settled, a cycle leaves the grid as it is. The settled
+// grid still reconstructs the field within C eps.
+template <int Dim, class F>
+void settled_cycle_changes_nothing(const gw::GridConfig<Dim>& c, double eps, F&& field) {
+  gw::ThresholdConfig th;
+  th.epsilon = eps;
+  th.groups = {0, -1};
+  auto sample = [&](const auto& x, std::span<double> v) { v[0] = field(x); v[1] = 0; };
+  {
+    gw::AdaptiveGrid<Dim> lone(c);
+    lone.adapt_to_function(th, sample);
+    const auto refined = lone.adapt(th, gw::AdaptPass::kRefine).refined;
+    const auto coarsened = lone.adapt(th, gw::AdaptPass::kCoarsen).coarsened;
+    if (root()) std::printf("%dD lone passes on unchanged data: %d refined, then %d coarsened\n", Dim, refined, coarsened);
+    EXPECT_GT(refined, 0);  // the setting shows the churn the cycle avoids
+    EXPECT_GT(coarsened, 0);
+  }
+  gw::AdaptiveGrid<Dim> grid(c);
+  grid.adapt_to_function(th, sample);
+  const auto lone_blocks = grid.global_blocks();
+  const auto first = grid.adapt_cycle(th);
+  for (int k = 0; k < 4; ++k) {
+    const auto later = grid.adapt_cycle(th);
+    EXPECT_EQ(later.refined, 0) << "cycle " << k + 2;
+    EXPECT_EQ(later.coarsened, 0) << "cycle " << k + 2;
+  }
+  gw::AdaptiveGrid<Dim> uniform(grid);
+  uniform.refine_to_uniform();
+  const double error = max_error(uniform, 0, field, false, gw::GhostKind::kSameLevel);
+  if (root())
+    std::printf("%dD first cycle: %d refined, %d coarsened; blocks %zu (lone passes %zu); error %.3e = %.2f eps\n", Dim,
+                first.refined, first.coarsened, grid.global_blocks(), lone_blocks, error, error / eps);
+  EXPECT_GE(grid.global_blocks(), lone_blocks);
+  EXPECT_LT(error, 2 * eps);
+}
+TEST(AdaptiveGrid, SettledCycleChangesNothing1D) {
+  settled_cycle_changes_nothing<1>(unit_box<1>(false, 0, 9), 1e-4, front_1d);
+}
+TEST(AdaptiveGrid, SettledCycleChangesNothing2D) {
+  settled_cycle_changes_nothing<2>(unit_box<2>(true, 1, 5), 1e-3, disc_2d);
+}
+
 TEST(AdaptiveGrid, ForcedRegionSitsAtFinestLevel) {
   gw::AdaptiveGrid<2> grid(unit_box<2>(false, 0, 3));
   gw::ThresholdConfig th;

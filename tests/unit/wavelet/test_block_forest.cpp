@@ -227,11 +227,11 @@ TEST(BlockForest, UniformHilbertForestIsAFaceConnectedWalk) {
   }
 }
 
-TEST(BlockForest, PartitionIsContiguousAndBalancedByCount) {
+TEST(BlockForest, PartitionIsContiguousBalancedAndKeepsFamilies) {
   gw::BlockForest<2> forest({{2, 2}, {true, true}, 3, gw::CurveOrder::kHilbert});
   std::vector<gw::AdaptTag> tags(forest.size(), gw::AdaptTag::kKeep);
   tags[1] = gw::AdaptTag::kRefine;
-  forest.adapt(tags);  // 7 leaves
+  forest.adapt(tags);  // 7 leaves: 3 roots and one family of 4
   for (int ranks : {1, 2, 3, 7, 10}) {
     const auto offsets = forest.partition(ranks);
     ASSERT_EQ(offsets.size(), static_cast<std::size_t>(ranks) + 1);
@@ -242,9 +242,20 @@ TEST(BlockForest, PartitionIsContiguousAndBalancedByCount) {
       EXPECT_LE(offsets[r], offsets[r + 1]);
       smallest = std::min(smallest, offsets[r + 1] - offsets[r]);
       largest = std::max(largest, offsets[r + 1] - offsets[r]);
+      // No cut between two siblings: the coarsen pass judges a family on one rank.
+      const std::size_t cut = offsets[r + 1];
+      if (cut > 0 && cut < forest.size()) {
+        EXPECT_FALSE(forest.leaves()[cut].level > 0 && forest.leaves()[cut - 1].parent() == forest.leaves()[cut].parent())
+            << ranks << " ranks, cut " << r + 1;
+      }
     }
-    EXPECT_LE(largest - smallest, 1u) << ranks << " ranks";
+    // Equal chunks, but for cuts moved to the nearer end of a family (at most 2^Dim / 2 leaves).
+    EXPECT_LE(largest - smallest, ranks > 1 ? 5u : 0u) << ranks << " ranks";
   }
+  // Without families to keep together the chunks differ by at most one.
+  gw::BlockForest<2> roots({{5, 3}, {true, true}, 3, gw::CurveOrder::kHilbert});
+  const auto offsets = roots.partition(4);
+  for (int r = 0; r < 4; ++r) EXPECT_NEAR(static_cast<double>(offsets[r + 1] - offsets[r]), 15.0 / 4, 0.76);
 }
 
 }  // namespace
