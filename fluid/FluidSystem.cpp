@@ -1876,7 +1876,10 @@ void FluidSystem::declare(SceneSchema& schema) {
   s.integer("block_size", 16, "collocation points per block and axis (even)").in_range(8, wavelet::kMaxBlockSize);
   s.integer("min_level", 0, "coarsest level Jmin").in_range(0, 20);
   s.integer("max_level", 4, "finest level Jmax").in_range(0, 20);
-  s.integer("order", 4, "Deslauriers-Dubuc interpolation order (4 or 6)").in_range(4, 6);
+  s.integer("order", 4,
+            "Deslauriers-Dubuc interpolation order (4 or 6); with 4, derivatives at level interfaces are of order 3 "
+            "(first) and 2 (second), with 6 of order 4 (wider ghost layers)")
+      .in_range(4, 6);
   s.flag("adaptive", true, "adapt the grid (false: uniform at max_level)");
   s.integer("adapt_every", 1, "steps between adaptations").at_least(1);
   s.real("epsilon", 1e-3, "wavelet threshold on the conserved variables").above(0).below(1);
