@@ -749,11 +749,6 @@ void AdaptiveGrid<Dim>::block_details(int field, std::size_t slot, std::span<dou
 }
 
 template <int Dim>
-double AdaptiveGrid<Dim>::block_detail_max(int field, std::size_t slot) const {
-  return detail_maxima(block(field, slot).data(), block_detail_stencils(slot)).first;
-}
-
-template <int Dim>
 std::pair<double, double> AdaptiveGrid<Dim>::detail_maxima(const double* u, const DetailStencils& stencils) const {
   // As block_details, without storing them: lanes of |u - P u| kept apart (packed maxima; NaNs
   // ignored, as std::max over the coefficients would). At all-even points u - P u is exactly 0

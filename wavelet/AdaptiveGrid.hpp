@@ -37,8 +37,9 @@
 // pass would refine: it can tell from the children alone, because in a cycle the refine pass
 // counts only the points whose prediction stencils the children's ghosts reach ("near" points,
 // all but the odd points next to an open block edge; a feature there is within the stencils of
-// the next near point of this block or its neighbour). A settled grid then stays as it is, and
-// the error control is the coarsen pass's, unchanged.
+// the next near point of this block or its neighbour). It keeps the families beside such a
+// family too (the adjacent zone in space). A settled grid then stays as it is, and the error
+// control is the coarsen pass's, unchanged.
 //
 // Storage. Each field is one array of local blocks; a block is an ArrayShape of Bs + 2g points
 // per axis (g ghost layers, by default the least that prediction and derivatives read:
@@ -152,8 +153,6 @@ class AdaptiveGrid {
   std::array<std::int64_t, 4> ghost_counts() const;
 
   // --- wavelet coefficients ---
-  /// Largest |d| of a field over one local block's points (ghosts must be filled).
-  double block_detail_max(int field, std::size_t slot) const;
   /// Writes d (interior points, 0 at all-even ones) of a field of a block into `out`
   /// (Bs^Dim values, interior order).
   void block_details(int field, std::size_t slot, std::span<double> out) const;
@@ -169,8 +168,9 @@ class AdaptiveGrid {
                     const ForcedRegion<Dim>& forced = {});
   /// A coarsen pass and then a refine pass on the same data: a time-stepping solver's
   /// adaptation between two steps. Unlike two lone passes, the grid keeps its safety zone in
-  /// scale: the refine pass tests near points only and the coarsen pass keeps every family
-  /// whose parent that would refine, so a settled grid is left as it is instead of being
+  /// scale and space: the refine pass tests near points only and the coarsen pass keeps every
+  /// family whose parent that would refine, and the families beside it, so a settled grid is
+  /// left as it is instead of being
   /// coarsened and refined again every cycle; and the coefficients are computed once when the
   /// coarsen pass changes nothing. Ghosts must be filled on entry and are filled on return.
   AdaptCounts adapt_cycle(const ThresholdConfig& threshold, const ForcedRegion<Dim>& forced = {});
