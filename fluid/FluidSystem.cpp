@@ -1428,11 +1428,11 @@ void FluidModel<Dim>::advance(double t, double dt) {
   if (adaptive_ && steps_taken_ % adapt_every_ == 0) {
     // Coarsen what the step left insignificant, then refine around what is significant (the
     // safety zone in scale and space) for the next adapt_every steps, the forced region taken
-    // at this step's end and one step beyond. Both passes on the same data share their
-    // coefficients.
+    // at this step's end and at the end of those steps (steps of this length). Both passes on
+    // the same data share their coefficients.
     ++adapt_cycles_;
     ScopedTimer timer(timers_, "adapt");
-    const auto now = forced_region(t + dt), next = forced_region(t + 2 * dt);
+    const auto now = forced_region(t + dt), next = forced_region(t + dt + adapt_every_ * dt);
     wavelet::ForcedRegion<Dim> forced;
     if (now) forced = [&](const auto& lo, const auto& hi) { return now(lo, hi) || next(lo, hi); };
     grid_->adapt_cycle(threshold_, forced);
