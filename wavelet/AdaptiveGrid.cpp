@@ -1128,6 +1128,14 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_with_tags(std::span<const AdaptTag> tags) {
   for (std::size_t s = 0; s < old_keys.size(); ++s) {
     const Key key = old_keys[s];
     if (const auto leaf = forest_.find(key)) {
+      if (owner(*leaf) == rank_) {
+        // Unchanged and still here (most blocks): the whole array at once; fill_ghosts below
+        // writes every ghost point again.
+        for (std::size_t f = 0; f < static_cast<std::size_t>(F); ++f)
+          std::copy_n(old_data[f].begin() + static_cast<std::ptrdiff_t>(s * block_volume_), block_volume_,
+                      data_[f].begin() + static_cast<std::ptrdiff_t>((*leaf - first_leaf_) * block_volume_));
+        continue;
+      }
       auto& out = body[static_cast<std::size_t>(owner(*leaf))];
       head[static_cast<std::size_t>(owner(*leaf))].insert(head[static_cast<std::size_t>(owner(*leaf))].end(),
                                                           {static_cast<std::int64_t>(*leaf), -1});
