@@ -22,6 +22,9 @@ RUNS = [
      ["run.t_end=2", "fluid.reynolds=1000", "fluid.shock_capturing=false"]),
     ("2D Riemann problem, Re_a 1e4 (2D NS)", "riemann2d.toml",
      ["run.t_end=0.15", "fluid.reynolds=10000"]),
+    # Moving bodies: the forced band moves every step, so every cycle changes blocks (8^2 ones).
+    ("two moving cylinders (penalized, 2D NS)", "two_cylinders.toml",
+     ["run.t_end=1", "output.interval=0.5"]),
 ]
 
 
