@@ -1052,16 +1052,9 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_pass(const ThresholdConfig& th, AdaptPass p
     // (a lone coarsen pass, as adapt_to_function makes, keeps only what is significant). The
     // partition never splits a family of leaves, so each is judged by the rank holding it.
     std::vector<char> local_keep(local_blocks(), 0), keep(n, 0);
-    for (std::size_t l = first_leaf_; l < first_leaf_ + local_blocks(); ++l) {
-      const Key& key = leaves[l];
-      if (key.level == 0 || key.child_index() != 0 || tags[l] != AdaptTag::kCoarsen) continue;
-      bool family = true;
-      for (int k = 1; k < Key::kChildren && family; ++k) {
-        const auto sibling = forest_.find(key.parent().child(k));
-        family = sibling && tags[*sibling] == AdaptTag::kCoarsen;
-      }
-      if (family && parent_significant(key.parent(), th, scale)) local_keep[l - first_leaf_] = 1;
-    }
+    for (std::size_t l = first_leaf_; l < first_leaf_ + local_blocks(); ++l)
+      if (forest_.family_asks_to_coarsen(l, tags) && parent_significant(leaves[l].parent(), th, scale))
+        local_keep[l - first_leaf_] = 1;
     gather_leaf_flags(local_keep, keep);
     // Adjacency in space: the refine pass also refines the same-or-coarser neighbours of a
     // block it refines for significance, so the families holding them are kept as well (the
@@ -1089,20 +1082,10 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_with_tags(std::span<const AdaptTag> tags) {
   // is, without copying it to find out.
   // A coarsen tag changes something only if the leaf's whole family asks for it (a settled
   // cycle's coarsen pass tags many leaves whose families it keeps).
-  const auto leaves = forest_.leaves();
-  auto family_coarsens = [&](std::size_t l) {
-    const Key& key = leaves[l];
-    if (key.level == 0) return false;
-    for (int k = 0; k < Key::kChildren; ++k) {
-      const auto member = forest_.find(key.parent().child(k));
-      if (!member || tags[*member] != AdaptTag::kCoarsen) return false;
-    }
-    return true;
-  };
   bool may_change = tags.size() != forest_.size();
   for (std::size_t l = 0; l < tags.size() && !may_change; ++l)
-    may_change = (tags[l] == AdaptTag::kCoarsen && leaves[l].child_index() == 0 && family_coarsens(l)) ||
-                 (tags[l] == AdaptTag::kRefine && leaves[l].level < config_.max_level);
+    may_change = forest_.family_asks_to_coarsen(l, tags) ||
+                 (tags[l] == AdaptTag::kRefine && forest_.leaves()[l].level < config_.max_level);
   if (!may_change) return {};
   BlockForest<Dim> next = forest_;
   const AdaptCounts counts = next.adapt(tags);  // refine, coarsen, 2:1 balance
@@ -1342,7 +1325,7 @@ const DerivativeOperator<Dim>& AdaptiveGrid<Dim>::derivative_operator(std::size_
   dc.accuracy = config_.derivative_accuracy;
   const auto touches = bounded_edges(key);
   for (int a = 0; a < Dim; ++a) dc.one_sided[static_cast<std::size_t>(a)] = touches[static_cast<std::size_t>(a)];
-  if (!op) op = std::make_unique<DerivativeOperator<Dim>>(layout_, spacing(key.level), dc);
+  op = std::make_unique<DerivativeOperator<Dim>>(layout_, spacing(key.level), dc);
   return *op;
 }
 

@@ -153,6 +153,19 @@ void BlockForest<Dim>::neighbours(const Key& leaf, std::vector<Neighbour<Dim>>& 
 }
 
 template <int Dim>
+bool BlockForest<Dim>::family_asks_to_coarsen(std::size_t i, std::span<const AdaptTag> tags,
+                                              std::array<std::size_t, Key::kChildren>* members) const {
+  const Key& first = leaves_[i];
+  if (first.level == 0 || first.child_index() != 0 || tags[i] != AdaptTag::kCoarsen) return false;
+  for (int k = 0; k < Key::kChildren; ++k) {
+    const auto j = find(first.parent().child(k));
+    if (!j || tags[*j] != AdaptTag::kCoarsen) return false;
+    if (members) (*members)[static_cast<std::size_t>(k)] = *j;
+  }
+  return true;
+}
+
+template <int Dim>
 AdaptCounts BlockForest<Dim>::adapt(std::span<const AdaptTag> tags) {
   if (tags.size() != leaves_.size())
     throw std::invalid_argument("BlockForest::adapt: " + std::to_string(tags.size()) + " tags for " +
@@ -186,16 +199,9 @@ AdaptCounts BlockForest<Dim>::adapt(std::span<const AdaptTag> tags) {
   std::vector<char> coarsen(n, 0);
   AdaptCounts counts;
   for (std::size_t i = 0; i < n; ++i) {
-    const Key& first = leaves_[i];
-    if (first.level == 0 || first.child_index() != 0 || tags[i] != AdaptTag::kCoarsen || refine[i]) continue;
-    const Key parent = first.parent();
     std::array<std::size_t, Key::kChildren> members{};
-    bool ok = true;
-    for (int k = 0; k < Key::kChildren && ok; ++k) {
-      const auto j = find(parent.child(k));
-      ok = j && tags[*j] == AdaptTag::kCoarsen && !refine[*j];
-      if (ok) members[static_cast<std::size_t>(k)] = *j;
-    }
+    if (!family_asks_to_coarsen(i, tags, &members)) continue;
+    bool ok = std::none_of(members.begin(), members.end(), [&](std::size_t j) { return refine[j] != 0; });
     for (int k = 0; k < Key::kChildren && ok; ++k) {
       neighbours(leaves_[members[static_cast<std::size_t>(k)]], around);
       for (const auto& nb : around) {

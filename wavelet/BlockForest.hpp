@@ -83,6 +83,10 @@ class BlockForest {
 
   /// Refine/coarsen by one tag per leaf (in leaves() order), then enforce 2:1 balance.
   AdaptCounts adapt(std::span<const AdaptTag> tags);
+  /// Whether leaf i is child 0 of a family whose members are all leaves tagged kCoarsen (what
+  /// a coarsening needs, before balance); their leaf indices go to `members` if given.
+  bool family_asks_to_coarsen(std::size_t i, std::span<const AdaptTag> tags,
+                              std::array<std::size_t, BlockKey<Dim>::kChildren>* members = nullptr) const;
 
   /// Independent checks (used by tests): 2:1 balance found without assuming it, and the leaves
   /// tile the domain exactly once.
