@@ -219,6 +219,7 @@ class FluidModel : public io::System {
   int adapt_every_ = 1;
   long steps_taken_ = 0;
   long adapt_cycles_ = 0;  // in this process, like the stage timers
+  long adapt_cycles_changing_ = 0;  // of which refined or coarsened some block
   std::array<std::array<BoundaryKind, 2>, Dim> boundary_{};
   std::array<std::array<Conserved<Dim>, 2>, Dim> inflow_{};  ///< state held by inflow ghosts
   double gamma_ = 1.4, cfl_ = 0.8;
@@ -1435,7 +1436,8 @@ void FluidModel<Dim>::advance(double t, double dt) {
     const auto now = forced_region(t + dt), next = forced_region(t + dt + adapt_every_ * dt);
     wavelet::ForcedRegion<Dim> forced;
     if (now) forced = [&](const auto& lo, const auto& hi) { return now(lo, hi) || next(lo, hi); };
-    grid_->adapt_cycle(threshold_, forced);
+    const auto changes = grid_->adapt_cycle(threshold_, forced);
+    if (changes.refined + changes.coarsened > 0) ++adapt_cycles_changing_;
     layout_changed();
     constrain_walls({}, false);  // points a refinement placed on a wall were interpolated
   }
@@ -1691,6 +1693,9 @@ void FluidModel<Dim>::report_adaptation_cost(io::Json& metrics) const {
   if (adapt_cycles_ == 0) return;
   const double adapt_s = mpi::max(seconds("adapt") / static_cast<double>(adapt_cycles_));
   metrics.set("adapt_cycle_s", adapt_s);
+  // Cycles that change the grid cost a ghost-plan rebuild and new block storage; settled ones
+  // only the coefficients.
+  metrics.set("adapt_changing_fraction", static_cast<double>(adapt_cycles_changing_) / static_cast<double>(adapt_cycles_));
   metrics.set("adapt_ghost_over_rhs", rhs_s > 0 ? (adapt_s + ghost_s) / rhs_s : 0.0);
 }
 

@@ -45,8 +45,14 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   std::vector<BlockKey<Dim>> block_dependencies;
   std::vector<std::int32_t> local_src_slot;
   // The rows again, sorted for filling: copies (one local term of weight 1, nothing remote:
-  // same-level neighbours and injection from finer leaves, most ghosts) and weighted sums.
-  std::vector<std::int64_t> copy_dest, copy_src;
+  // same-level neighbours and injection from finer leaves, most ghosts), merged into runs of
+  // consecutive points (a ghost row facing one neighbour reads one of its rows), and weighted
+  // sums.
+  struct CopyRun {
+    std::int64_t dest, src;
+    std::int32_t length;
+  };
+  std::vector<CopyRun> copy_runs;
   std::vector<std::int32_t> sum_rows;
   // Messages: point-major buffers [point][field], one contiguous range per peer rank.
   std::vector<int> recv_rank, recv_first, recv_count;
@@ -596,11 +602,56 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
     const bool copy = plan.local_begin[k + 1] - plan.local_begin[k] == 1 && plan.local_w[t] == 1.0 &&
                       plan.remote_begin[k + 1] == plan.remote_begin[k];
     if (copy) {
-      plan.copy_dest.push_back(plan.dest[k]);
-      plan.copy_src.push_back(plan.local_src[t]);
+      const std::int64_t dest = plan.dest[k], src = plan.local_src[t];
+      auto* last = plan.copy_runs.empty() ? nullptr : &plan.copy_runs.back();
+      if (last && dest == last->dest + last->length && src == last->src + last->length) ++last->length;
+      else plan.copy_runs.push_back({dest, src, 1});
     } else {
       plan.sum_rows.push_back(static_cast<std::int32_t>(k));
     }
+  }
+}
+
+namespace {
+
+/// The local terms of a ghost plan for kFields consecutive field arrays at once. Sources are
+/// interior points, so the order of the rows does not matter. Each field's sum is accumulated
+/// from 0 in term order however many fields go together, so the values are bitwise the same;
+/// with the fields side by side a row's indices and weights are read once, and its kFields sums
+/// are independent chains (a lone sum waits on each add). A copy is written 0 + u, what the
+/// weighted sum gives (-0 becomes +0).
+template <int kFields, typename Plan>
+void fill_local_terms(const Plan& plan, std::vector<double>* fields) {
+  std::array<double*, kFields> u{};
+  for (std::size_t f = 0; f < kFields; ++f) u[f] = fields[f].data();
+  for (const auto& run : plan.copy_runs)
+    for (std::size_t f = 0; f < kFields; ++f) {
+      double* to = u[f] + run.dest;
+      const double* from = u[f] + run.src;
+      for (std::int32_t k = 0; k < run.length; ++k) to[k] = 0.0 + from[k];
+    }
+  const auto* begin = plan.local_begin.data();
+  const auto* src = plan.local_src.data();
+  const auto* weight = plan.local_w.data();
+  for (const std::int32_t row : plan.sum_rows) {
+    const auto k = static_cast<std::size_t>(row);
+    std::array<double, kFields> v{};
+    for (auto t = static_cast<std::size_t>(begin[k]); t < static_cast<std::size_t>(begin[k + 1]); ++t)
+      for (std::size_t f = 0; f < kFields; ++f) v[f] += weight[t] * u[f][src[t]];
+    for (std::size_t f = 0; f < kFields; ++f) u[f][plan.dest[k]] = v[f];
+  }
+}
+
+}  // namespace
+
+template <int Dim>
+void AdaptiveGrid<Dim>::fill_local_ghosts(const GhostPlan& plan) {
+  // The fluid's 4 (2D) or 5 (3D) conserved fields together; other counts one by one.
+  switch (data_.size()) {
+    case 4: fill_local_terms<4>(plan, data_.data()); break;
+    case 5: fill_local_terms<5>(plan, data_.data()); break;
+    default:
+      for (auto& field : data_) fill_local_terms<1>(plan, &field);
   }
 }
 
@@ -619,21 +670,9 @@ void AdaptiveGrid<Dim>::fill_ghosts() {
   for (std::size_t k = 0; k < plan.send_rank.size(); ++k)
     MPI_Isend(plan.send_buffer.data() + static_cast<std::size_t>(plan.send_first[k]) * Fu, plan.send_count[k] * F,
               MPI_DOUBLE, plan.send_rank[k], 71, comm_, &plan.requests[nreq++]);
-  // Local contributions while the messages travel. Sources are interior points, so the order
-  // of the rows does not matter. A copy is written 0 + u (what the weighted sum gives: -0
-  // becomes +0), so the values are bitwise those of the sums.
-  const std::size_t ghosts = plan.dest.size(), copies = plan.copy_dest.size();
-  for (std::size_t f = 0; f < Fu; ++f) {
-    double* u = data_[f].data();
-    for (std::size_t c = 0; c < copies; ++c) u[plan.copy_dest[c]] = 0.0 + u[plan.copy_src[c]];
-    for (const std::int32_t row : plan.sum_rows) {
-      const auto k = static_cast<std::size_t>(row);
-      double v = 0;
-      for (auto t = plan.local_begin[k]; t < plan.local_begin[k + 1]; ++t)
-        v += plan.local_w[static_cast<std::size_t>(t)] * u[plan.local_src[static_cast<std::size_t>(t)]];
-      u[plan.dest[k]] = v;
-    }
-  }
+  // Local contributions while the messages travel.
+  fill_local_ghosts(plan);
+  const std::size_t ghosts = plan.dest.size();
   MPI_Waitall(static_cast<int>(nreq), plan.requests.data(), MPI_STATUSES_IGNORE);
   if (plan.remote_src.empty()) return;
   for (std::size_t f = 0; f < Fu; ++f) {
@@ -1092,9 +1131,14 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_with_tags(std::span<const AdaptTag> tags) {
   if (counts.refined == 0 && counts.coarsened == 0) return counts;  // same blocks, same ghosts
   forest_ = std::move(next);
   const std::vector<Key> old_keys = local_keys_;
-  const std::vector<std::vector<double>> old_data = std::move(data_);
+  std::vector<std::vector<double>> old_data = std::move(data_);
   refresh_partition();
-  allocate_local();
+  // The storage the previous adaptation gave up, grown if need be: fresh arrays would be zeroed
+  // and paged in again every cycle. No stale value survives: every interior point is written
+  // below and every ghost point by fill_ghosts().
+  data_ = std::move(spare_data_);
+  data_.resize(old_data.size());
+  for (auto& field : data_) field.resize(local_keys_.size() * block_volume_);
 
   // New blocks from the old ones on the old owner: unchanged (copy), refined (children by
   // prediction from the ghosted parent) or coarsened (each child injects its quarter of the
@@ -1199,6 +1243,7 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_with_tags(std::span<const AdaptTag> tags) {
   }
   build_ghost_plan(std::move(plan_), old_keys);
   fill_ghosts();
+  spare_data_ = std::move(old_data);
   return counts;
 }
 

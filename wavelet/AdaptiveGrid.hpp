@@ -197,6 +197,8 @@ class AdaptiveGrid {
 
  private:
   struct GhostPlan;
+  /// The part of a ghost fill that reads this rank's blocks.
+  void fill_local_ghosts(const GhostPlan& plan);
   void allocate_local();
   /// Builds the ghost plan of the current grid. With the plan of the grid before an adaptation
   /// and that grid's local keys, the rows of blocks whose neighbourhood did not change are
@@ -216,6 +218,7 @@ class AdaptiveGrid {
   BlockLayout<Dim> layout_;
   std::size_t interior_points_ = 0, block_volume_ = 0;
   std::vector<std::vector<double>> data_;  // per field: local blocks x block_volume_
+  std::vector<std::vector<double>> spare_data_;  // the arrays of the previous adaptation (scratch, not copied)
   std::unique_ptr<GhostPlan> plan_;
   /// Drawn afresh (process-wide) whenever the ghost plan is built; copies share it, so an
   /// assignment between grids with the same layout copies only the field data.
