@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 #include <limits>
+#include <memory>
 #include <numbers>
 
 #include "core/Error.hpp"
@@ -15,6 +16,7 @@
 #include "fluid/FluidBoundaries.hpp"
 #include "fluid/IdealGas.hpp"
 #include "fluid/ImmersedBodies.hpp"
+#include "fluid/InitialFieldFile.hpp"
 #include "fluid/Penalization.hpp"
 #include "fluid/SplitConvection.hpp"
 #include "fluid/ViscousTerms.hpp"
@@ -36,7 +38,7 @@ std::array<double, Dim> head(const std::vector<double>& v) {
   return out;
 }
 
-enum class InitialKind { kUniform, kRiemann, kShock, kVortex, kQuadrants, kShearWave, kAcousticPulse };
+enum class InitialKind { kUniform, kRiemann, kShock, kVortex, kQuadrants, kShearWave, kAcousticPulse, kFile };
 
 /// The initial state and, where one exists, the exact solution at time t.
 template <int Dim>
@@ -51,6 +53,7 @@ struct InitialCondition {
   std::array<double, 2> density_wave{};          ///< amplitude, wavenumber on the right state (Shu-Osher)
   std::array<std::array<double, 4>, 4> quadrants{};  ///< (rho, u, v, p) of the four 2D quadrants
   double pulse_amplitude = 1e-3, pulse_width = 0.05;  ///< acoustic pulse: p'/p, Gaussian half-width
+  std::shared_ptr<const InitialFieldFile> file;  ///< fields read from a file
 
   double along_normal(const std::array<double, Dim>& x) const {
     double s = 0;
@@ -100,6 +103,14 @@ struct InitialCondition {
         w.p += pressure;
         w.rho += pressure / (c * c);
         for (int a = 0; a < Dim; ++a) w.u[static_cast<std::size_t>(a)] += pressure / (left.rho * c) * normal[static_cast<std::size_t>(a)];
+        return w;
+      }
+      case InitialKind::kFile: {
+        const auto v = file->at(x.data());
+        Primitive<Dim> w;
+        w.rho = v[0];
+        for (int a = 0; a < Dim; ++a) w.u[static_cast<std::size_t>(a)] = v[static_cast<std::size_t>(a) + 1];
+        w.p = v[static_cast<std::size_t>(Dim) + 1];
         return w;
       }
       case InitialKind::kShock:  // moves along +normal into the gas ahead
@@ -347,7 +358,18 @@ FluidModel<Dim>::FluidModel(const Scene& scene) {
                   : initial == "quadrants" ? InitialKind::kQuadrants
                   : initial == "shear_wave" ? InitialKind::kShearWave
                   : initial == "acoustic_pulse" ? InitialKind::kAcousticPulse
+                  : initial == "file" ? InitialKind::kFile
                                         : InitialKind::kUniform;
+  if (initial_.kind == InitialKind::kFile) {
+    const std::string& name = s.text("initial_file");
+    if (name.empty()) s.fail("initial_file", "initial = \"file\" needs the path of the HDF5 file");
+    // A relative path written in the scene file is taken from the scene file's folder (a case
+    // and its data travel together); one given on the command line, from the working folder.
+    std::filesystem::path path(name);
+    if (path.is_relative() && s.location("initial_file").file == scene.file())
+      path = std::filesystem::path(scene.file()).parent_path() / path;
+    initial_.file = std::make_shared<const InitialFieldFile>(path, Dim, s.location("initial_file"), s.qualified("initial_file"));
+  }
   initial_.gamma = gamma_;
   const auto& l = s.reals("left");
   const auto& r = s.reals("right");
@@ -403,7 +425,7 @@ FluidModel<Dim>::FluidModel(const Scene& scene) {
   }
   if (initial_.kind == InitialKind::kQuadrants && Dim < 2) s.fail("initial", "four quadrants need dimension 2 or 3");
   for (int a = 0; a < Dim; ++a)
-    for (int side = 0; side < 2; ++side) {
+    for (int side = 0; side < 2 && !config_.periodic[static_cast<std::size_t>(a)]; ++side) {  // periodic: no inflow
       auto face = initial_.centre;
       for (int b = 0; b < Dim; ++b) face[static_cast<std::size_t>(b)] = 0.5 * (config_.lo[static_cast<std::size_t>(b)] + config_.hi[static_cast<std::size_t>(b)]);
       face[static_cast<std::size_t>(a)] = side ? config_.hi[static_cast<std::size_t>(a)] : config_.lo[static_cast<std::size_t>(a)];
@@ -1901,8 +1923,12 @@ void FluidSystem::declare(SceneSchema& schema) {
   s.real("sensor_threshold", 0.001, "psi_0: no dissipation where the sensor is below it").at_least(0);
   s.text("initial", "uniform", "uniform, riemann (two states across a plane), shock (planar shock of shock_mach) "
                                "vortex (isentropic vortex), quadrants (2D Riemann problem), shear_wave (viscous decay) "
-                               "or acoustic_pulse (a plane sound pulse in the left state, moving along normal)")
-      .one_of({"uniform", "riemann", "shock", "vortex", "quadrants", "shear_wave", "acoustic_pulse"});
+                               "acoustic_pulse (a plane sound pulse in the left state, moving along normal) or file "
+                               "(rho, velocity, p sampled on a uniform grid in the HDF5 file initial_file, interpolated "
+                               "by cubics; format in docs/initial-fields.md)")
+      .one_of({"uniform", "riemann", "shock", "vortex", "quadrants", "shear_wave", "acoustic_pulse", "file"});
+  s.text("initial_file", "", "initial = file: the HDF5 file (a relative path: from the scene file's folder, or "
+                            "from the working folder when given with --set)");
   s.reals("left", std::vector<double>{1, 0, 1}, "rho, normal velocity, p on the side behind the normal (uniform: "
                                                  "the state)")
       .of_length(3);

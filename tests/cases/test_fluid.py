@@ -248,6 +248,67 @@ def stress_runs():
            f"Mach 10: p5/p1 {s['metrics']['p_reflected_over_p1']:.1f} within 1% of exact")
 
 
+def vortex_samples(n, gamma=1.4, beta=5.0, centre=(5.0, 5.0), speed=(1.0, 1.0)):
+    """The isentropic vortex (fluid/ExactSolutions.cpp) at n x n samples spanning [0, 10]^2."""
+    x = np.linspace(0.0, 10.0, n)
+    xx, yy = np.meshgrid(x, x, indexing="xy")  # x fastest in the flattened arrays
+    dx, dy = xx - centre[0], yy - centre[1]
+    bump = np.exp(0.5 * (1 - dx * dx - dy * dy))
+    du = beta / (2 * np.pi) * bump
+    temperature = 1 - (gamma - 1) * beta * beta / (8 * np.pi * np.pi) * bump * bump
+    rho = temperature ** (1 / (gamma - 1))
+    return {"rho": rho, "u": speed[0] - du * dy, "v": speed[1] + du * dx, "p": rho * temperature / gamma}
+
+
+def write_field_file(path, n, fields, drop=None):
+    with h5py.File(path, "w") as f:
+        f.attrs["nx"], f.attrs["ny"] = n, n
+        f.attrs["x_lo"], f.attrs["x_hi"], f.attrs["y_lo"], f.attrs["y_hi"] = 0.0, 10.0, 0.0, 10.0
+        for name, values in fields.items():
+            if name != drop:
+                f.create_dataset(name, data=values.ravel())
+
+
+def initial_fields_from_file():
+    # The isentropic vortex sampled on n x n points, read with initial = "file" onto a uniform
+    # 64^2 grid and compared at t = 0 with the same run started from the analytic vortex: the
+    # cubic interpolation's error must fall by about 2^4 when the samples double.
+    _, reference, _ = run("isentropic_vortex.toml", "fluid.adaptive=false", "fluid.max_level=2", "run.t_end=0.01",
+                          out=scratch("file_reference"))
+    expected = read_fluid(sorted(glob.glob(os.path.join(reference, "output_*.h5")))[0])
+    data = scratch("field_files")
+    errors = []
+    for n in (41, 81):
+        path = os.path.join(data, f"vortex_{n}.h5")
+        write_field_file(path, n, vortex_samples(n))
+        s, out, _ = run("isentropic_vortex.toml", "fluid.adaptive=false", "fluid.max_level=2", "run.t_end=0.01",
+                        "fluid.initial=file", f"fluid.initial_file={path}", out=scratch(f"file_{n}"))
+        expect(s["status"] == "completed", f"{n}^2 samples: the run from the file completed")
+        got = read_fluid(sorted(glob.glob(os.path.join(out, "output_*.h5")))[0])
+        errors.append(max(np.max(np.abs(got[k] - expected[k])) for k in ("rho", "p")))
+    order = math.log2(errors[0] / errors[1])
+    expect(errors[1] < 1e-4 and order >= 3.5,
+           f"initial fields from a file: max error {errors[0]:.2e} (41^2 samples), {errors[1]:.2e} (81^2): "
+           f"order {order:.2f} >= 3.5 (cubic)")
+    # A dataset missing from the file: exit 2, naming the file and the dataset; nothing written.
+    broken = os.path.join(data, "vortex_no_p.h5")
+    write_field_file(broken, 41, vortex_samples(41), drop="p")
+    out = scratch("file_broken")
+    proc = grainwave("run", case("isentropic_vortex.toml"), "--set", "fluid.initial=file", "--set",
+                     f"fluid.initial_file={broken}", "--out", out, check=2)
+    text = proc.stdout + proc.stderr
+    expect(broken in text and "'p'" in text, "a missing dataset is named with its file")
+    expect(not glob.glob(os.path.join(out, "output_*.h5")), "nothing is written")
+    # The file must cover the domain.
+    small = os.path.join(data, "vortex_small.h5")
+    write_field_file(small, 41, vortex_samples(41))
+    with h5py.File(small, "a") as f:
+        f.attrs["x_hi"] = 5.0
+    proc = grainwave("run", case("isentropic_vortex.toml"), "--set", "fluid.initial=file", "--set",
+                     f"fluid.initial_file={small}", "--out", scratch("file_small"), check=2)
+    expect("outside the sampled box" in proc.stdout + proc.stderr, "a domain point outside the file's box is an input error")
+
+
 def viscous_shear_wave():
     # Viscous terms against the exact decay exp(-k^2 t / Re_a) of a small shear wave: error of the
     # y velocity on 64x16 and 128x32 uniform grids, conservation on the periodic strip.
@@ -288,6 +349,7 @@ if __name__ == "__main__":
         "fluid_one_and_two_ranks": one_and_two_ranks,
         "fluid_restart_is_exact": restart_is_exact,
         "fluid_too_large_cfl_is_caught": too_large_cfl_is_caught,
+        "fluid_initial_fields_from_file": initial_fields_from_file,
         "fluid_stress_runs": stress_runs,
         "fluid_viscous_shear_wave": viscous_shear_wave,
         "fluid_validate_long_runs": validate_long_runs,
