@@ -10,6 +10,12 @@
 #include "core/Error.hpp"
 #include "particles/hardsphere/CollisionTime.hpp"
 
+#if GRAINWAVE_AVX2_SCAN
+#include <immintrin.h>
+#elif defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 namespace grainwave::particles::hardsphere {
 
 namespace {
@@ -42,6 +48,9 @@ double first_descent(double c, double b, double a, bool outside_is_now) {
 
 EventDrivenCollider::EventDrivenCollider(EventDrivenSettings settings) : settings_(settings) {
   validate(settings_.law, "hardsphere");
+#if GRAINWAVE_AVX2_SCAN
+  avx2_ = __builtin_cpu_supports("avx2");
+#endif
 }
 
 int EventDrivenCollider::cell_index(const std::array<int, 3>& c) const {
@@ -54,12 +63,13 @@ double EventDrivenCollider::key(int i) const {
 }
 
 void EventDrivenCollider::heap_update(int i) {
-  // A 4-ary heap: half the levels of a binary one, and the four children of a slot are 64
-  // contiguous bytes (HeapEntry is 16), so a sift costs fewer dependent loads. The earliest child
-  // is found by a branch-free tournament; entries past the end are +inf sentinels.
-  HeapEntry* heap = heap_.data();
+  // A 4-ary heap: half the levels of a binary one, and the four children of a slot are one
+  // cache line (HeapEntry is 16 bytes, slots 4 s + 1 to 4 s + 4 start on a line boundary), so a
+  // sift costs one dependent miss per level. The earliest child is found by a branch-free
+  // tournament; entries past the end are +inf sentinels.
+  HeapEntry* heap = this->heap();
   int* position = heap_position_.data();
-  const int n = static_cast<int>(heap_.size()) - (kHeapArity - 1);
+  const int n = static_cast<int>(heap_position_.size());
   const HeapEntry entry{key(i), i};
   int slot = position[i];
   while (slot > 0) {  // sift up
@@ -99,28 +109,50 @@ void EventDrivenCollider::sync(ParticleStore& store, int i, double t) {
 double EventDrivenCollider::next_crossing(int i, const Vec3& x, const Vec3& v, int* face) const {
   const auto k = static_cast<std::size_t>(i);
   const Vec3& a = acceleration_;
-  // first_descent(gap, rate, 0, true) written out for the common unaccelerated case.
-  const auto exit_time = [this](double gap, double rate, double half_acceleration) {
-    if (accelerated_) return first_descent(gap, rate, half_acceleration, true);
-    if (gap < 0.0) return 0.0;
-    return rate < 0.0 ? -gap / rate : kNever;
-  };
-  double best = kNever;
-  for (int axis = 0; axis < dimension_; ++axis) {
+  // Exit times through the low and high face of each axis (+inf where impossible), then the
+  // earliest, the first in the order x low, x high, y low, ... on a tie. Which face comes first
+  // is data-dependent, so both steps select rather than branch (the compiler turns the scalar
+  // selects of the unaccelerated formula into branches, hence SSE2 there).
+  std::array<double, 6> exit{};
+  for (int axis = 0; axis < 3; ++axis) {
     const auto ax = static_cast<std::size_t>(axis);
     const int c = cell_of_[k][ax];
+    const double gap_low = x[axis] - (lo_[axis] + c * cell_size_[ax]);
+    const double gap_high = lo_[axis] + (c + 1) * cell_size_[ax] - x[axis];
+    double low, high;
+    if (accelerated_) {
+      low = first_descent(gap_low, v[axis], 0.5 * a[axis], true);
+      high = first_descent(gap_high, -v[axis], -0.5 * a[axis], true);
+    } else {
+      // first_descent(gap, rate, 0, true): gap < 0 ? 0 : rate < 0 ? -gap / rate : +inf, for the
+      // pair (low, high) with rates (v, -v).
+#if defined(__SSE2__)
+      const __m128d gap = _mm_set_pd(gap_high, gap_low), rate = _mm_set_pd(-v[axis], v[axis]);
+      const __m128d zero = _mm_setzero_pd(), sign = _mm_set1_pd(-0.0);
+      const __m128d ahead = _mm_div_pd(_mm_xor_pd(gap, sign), rate);
+      const __m128d approaching = _mm_cmplt_pd(rate, zero);
+      const __m128d t = _mm_or_pd(_mm_and_pd(approaching, ahead),
+                                  _mm_andnot_pd(approaching, _mm_set1_pd(kNever)));
+      const __m128d exit_time = _mm_andnot_pd(_mm_cmplt_pd(gap, zero), t);
+      low = _mm_cvtsd_f64(exit_time);
+      high = _mm_cvtsd_f64(_mm_unpackhi_pd(exit_time, exit_time));
+#else
+      low = gap_low < 0.0 ? 0.0 : (v[axis] < 0.0 ? -gap_low / v[axis] : kNever);
+      high = gap_high < 0.0 ? 0.0 : (-v[axis] < 0.0 ? -gap_high / -v[axis] : kNever);
+#endif
+    }
     // Leaving through a wall face is impossible (the wall collision comes first).
-    if (c > 0 || periodic_[ax]) {
-      const double lower = lo_[axis] + c * cell_size_[ax];
-      const double t = exit_time(x[axis] - lower, v[axis], 0.5 * a[axis]);
-      if (t < best) { best = t; *face = 2 * axis; }
-    }
-    if (c < cells_[ax] - 1 || periodic_[ax]) {
-      const double upper = lo_[axis] + (c + 1) * cell_size_[ax];
-      const double t = exit_time(upper - x[axis], -v[axis], -0.5 * a[axis]);
-      if (t < best) { best = t; *face = 2 * axis + 1; }
-    }
+    const bool active = axis < dimension_;
+    exit[2 * ax] = active && (c > 0 || periodic_[ax]) ? low : kNever;
+    exit[2 * ax + 1] = active && (c < cells_[ax] - 1 || periodic_[ax]) ? high : kNever;
   }
+  double best = kNever;
+  int best_face = *face;
+  for (std::size_t f = 0; f < 6; ++f) {
+    best_face = exit[f] < best ? static_cast<int>(f) : best_face;
+    best = exit[f] < best ? exit[f] : best;
+  }
+  *face = best_face;
   return best;
 }
 
@@ -198,16 +230,6 @@ int EventDrivenCollider::gather(const int* cells, int count) {
   return gathered;
 }
 
-// The contact-time pass is also compiled for AVX2 where the target is x86-64 and the running
-// machine has it (picked at load time): the same IEEE operations on four lanes instead of two,
-// so the results do not change (no FMA: that is a separate target feature).
-#if defined(__x86_64__) && defined(__GNUC__)
-#define GRAINWAVE_WIDE_VECTOR_CLONES [[gnu::target_clones("avx2", "default")]]
-#else
-#define GRAINWAVE_WIDE_VECTOR_CLONES
-#endif
-
-GRAINWAVE_WIDE_VECTOR_CLONES
 void EventDrivenCollider::contact_times(CandidateColumns& columns, int count, const ScanFrame& f) {
   const double* __restrict const px = columns.x.data();
   const double* __restrict const py = columns.y.data();
@@ -251,37 +273,101 @@ void EventDrivenCollider::contact_times(CandidateColumns& columns, int count, co
   }
 }
 
+#if GRAINWAVE_AVX2_SCAN
+namespace {
+
+/// Columns c[0..3] of the 4 x 4 block of doubles at line[0..3] + offset (row m from line[m]).
+[[gnu::target("avx2"), gnu::always_inline]] inline void load_columns(const double* const* line,
+                                                                     int offset, __m256d* c) {
+  const __m256d r0 = _mm256_load_pd(line[0] + offset), r1 = _mm256_load_pd(line[1] + offset);
+  const __m256d r2 = _mm256_load_pd(line[2] + offset), r3 = _mm256_load_pd(line[3] + offset);
+  const __m256d a = _mm256_unpacklo_pd(r0, r1), b = _mm256_unpackhi_pd(r0, r1);
+  const __m256d d = _mm256_unpacklo_pd(r2, r3), e = _mm256_unpackhi_pd(r2, r3);
+  c[0] = _mm256_permute2f128_pd(a, d, 0x20);
+  c[1] = _mm256_permute2f128_pd(b, e, 0x20);
+  c[2] = _mm256_permute2f128_pd(a, d, 0x31);
+  c[3] = _mm256_permute2f128_pd(b, e, 0x31);
+}
+
+}  // namespace
+
+[[gnu::target("avx2")]] double EventDrivenCollider::contact_times_avx2(const Flight* flight,
+                                                                       const int* candidates,
+                                                                       int count, int self,
+                                                                       const ScanFrame& f,
+                                                                       double* times) {
+  // contact_times() on four candidates at a time, read straight from their Flight lines: each
+  // line is two rows of four doubles (x y z clock, vx vy vz radius), and a 4 x 4 transposition
+  // of four candidates' rows gives the columns, without the copy through memory. The operations
+  // and their order are those of contact_times() (no FMA), so every time is bitwise the same.
+  // i itself (and the padding, which is i) gets +inf here rather than being skipped later.
+  const __m256d zero = _mm256_setzero_pd(), never = _mm256_set1_pd(kNever);
+  const __m256d now = _mm256_set1_pd(f.now), r = _mm256_set1_pd(f.radius);
+  __m256d a[3], half_a[3], length[3], half[3], minus_half[3], x[3], v[3];
+  for (std::size_t k = 0; k < 3; ++k) {
+    a[k] = _mm256_set1_pd(f.acceleration[k]);
+    half_a[k] = _mm256_set1_pd(0.5 * f.acceleration[k]);
+    length[k] = _mm256_set1_pd(f.length[k]);
+    half[k] = _mm256_set1_pd(f.half_image[k]);
+    minus_half[k] = _mm256_set1_pd(-f.half_image[k]);
+    x[k] = _mm256_set1_pd(f.position[k]);
+    v[k] = _mm256_set1_pd(f.velocity[k]);
+  }
+  const __m128i self4 = _mm_set1_epi32(self);
+  __m256d earliest = never;
+  for (int k = 0; k < count; k += 4) {
+    const double* line[4];
+    for (int m = 0; m < 4; ++m) line[m] = flight[candidates[k + m]].position.data();
+    __m256d p[4], w[4];  // x y z clock; vx vy vz radius
+    load_columns(line, 0, p);
+    load_columns(line, 4, w);
+    const __m256d tau = _mm256_sub_pd(now, p[3]);
+    __m256d d[3], u[3];
+    for (int m = 0; m < 3; ++m) {
+      const __m256d d0 = _mm256_add_pd(
+          _mm256_sub_pd(_mm256_add_pd(p[m], _mm256_mul_pd(w[m], tau)), x[m]),
+          _mm256_mul_pd(_mm256_mul_pd(half_a[m], tau), tau));
+      u[m] = _mm256_add_pd(_mm256_sub_pd(w[m], v[m]), _mm256_mul_pd(a[m], tau));
+      d[m] = _mm256_sub_pd(d0, _mm256_and_pd(_mm256_cmp_pd(d0, half[m], _CMP_GT_OQ), length[m]));
+      d[m] = _mm256_add_pd(d[m], _mm256_and_pd(_mm256_cmp_pd(d[m], minus_half[m], _CMP_LT_OQ), length[m]));
+    }
+    const __m256d sigma = _mm256_add_pd(r, w[3]);
+    const __m256d b = _mm256_add_pd(
+        _mm256_add_pd(_mm256_mul_pd(d[0], u[0]), _mm256_mul_pd(d[1], u[1])), _mm256_mul_pd(d[2], u[2]));
+    const __m256d c = _mm256_sub_pd(
+        _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(d[0], d[0]), _mm256_mul_pd(d[1], d[1])),
+                      _mm256_mul_pd(d[2], d[2])),
+        _mm256_mul_pd(sigma, sigma));
+    const __m256d uu = _mm256_add_pd(
+        _mm256_add_pd(_mm256_mul_pd(u[0], u[0]), _mm256_mul_pd(u[1], u[1])), _mm256_mul_pd(u[2], u[2]));
+    const __m256d discriminant = _mm256_sub_pd(_mm256_mul_pd(b, b), _mm256_mul_pd(uu, c));
+    // max_pd(p, q) is p > q ? p : q, so these are std::max(discriminant, 0.0) and
+    // std::max(0.0, ...) with the same results for signed zeros and NaN.
+    const __m256d root = _mm256_sqrt_pd(_mm256_max_pd(zero, discriminant));
+    const __m256d t = _mm256_max_pd(_mm256_div_pd(c, _mm256_sub_pd(root, b)), zero);
+    const __m256d self_mask = _mm256_castsi256_pd(_mm256_cvtepi32_epi64(_mm_cmpeq_epi32(
+        _mm_loadu_si128(reinterpret_cast<const __m128i*>(candidates + k)), self4)));
+    const __m256d touches = _mm256_andnot_pd(
+        self_mask, _mm256_and_pd(_mm256_cmp_pd(b, zero, _CMP_LT_OQ),
+                                 _mm256_cmp_pd(discriminant, zero, _CMP_GE_OQ)));
+    const __m256d time = _mm256_blendv_pd(never, _mm256_add_pd(now, t), touches);
+    _mm256_storeu_pd(times + k, time);
+    earliest = _mm256_min_pd(earliest, time);
+  }
+  const __m128d half_min = _mm_min_pd(_mm256_castpd256_pd128(earliest), _mm256_extractf128_pd(earliest, 1));
+  return _mm_cvtsd_f64(_mm_min_sd(half_min, _mm_unpackhi_pd(half_min, half_min)));
+}
+#endif
+
 void EventDrivenCollider::scan(int i, int count, const Vec3& x, const Vec3& v, Pending& p) {
-  // Three passes: copy the candidates' flight states into contiguous columns, take all contact
-  // times there (independent iterations, selects instead of branches: the compiler vectorises
-  // it), then pick the earliest. Locals, not members, in the loops: stores would otherwise force
-  // reloads (aliasing).
+  // Contact times of all candidates in one pass without data-dependent branches, then the
+  // earliest. A count that is a multiple of the vector width keeps every candidate in the
+  // vectorised loop (none is left to a scalar remainder); the padding is i itself, never a
+  // partner.
   pair_checks_ += count;
   const Flight* flight = flight_.data();
   int* const candidates = candidates_.data();
-  // A count that is a multiple of the widest vector keeps every candidate in the vectorised
-  // loop (none is left to a scalar remainder); the padding is i itself, which the last pass skips.
   while (count % kScanLanes != 0) candidates[count++] = i;
-  CandidateColumns& columns = columns_;
-  double* __restrict const px = columns.x.data();
-  double* __restrict const py = columns.y.data();
-  double* __restrict const pz = columns.z.data();
-  double* __restrict const wx = columns.vx.data();
-  double* __restrict const wy = columns.vy.data();
-  double* __restrict const wz = columns.vz.data();
-  double* __restrict const clock = columns.clock.data();
-  double* __restrict const radius = columns.radius.data();
-  for (int k = 0; k < count; ++k) {
-    const Flight& fj = flight[candidates[k]];
-    px[k] = fj.position.x();
-    py[k] = fj.position.y();
-    pz[k] = fj.position.z();
-    wx[k] = fj.velocity.x();
-    wy[k] = fj.velocity.y();
-    wz[k] = fj.velocity.z();
-    clock[k] = fj.clock;
-    radius[k] = fj.radius;
-  }
   ScanFrame frame{};
   for (std::size_t axis = 0; axis < 3; ++axis) {
     const auto k = static_cast<int>(axis);
@@ -293,19 +379,50 @@ void EventDrivenCollider::scan(int i, int count, const Vec3& x, const Vec3& v, P
   }
   frame.now = now_;
   frame.radius = flight[i].radius;
-  contact_times(columns, count, frame);
-  const double* times = columns.time.data();
-  double best = p.collision_time;
-  int partner = -1;
-  for (int k = 0; k < count; ++k) {
-    const bool earlier = times[k] < best && candidates[k] != i;
-    best = earlier ? times[k] : best;
-    partner = earlier ? candidates[k] : partner;
+  CandidateColumns& columns = columns_;
+  double* const times = columns.time.data();
+  double earliest = kNever;
+#if GRAINWAVE_AVX2_SCAN
+  if (avx2_) {
+    earliest = contact_times_avx2(flight, candidates, count, i, frame, times);
+  } else
+#endif
+  {
+    // Portable: the candidates' flight states copied into columns (locals, not members, in the
+    // loop: stores would otherwise force reloads), a loop the compiler vectorises, then the
+    // earliest time with i left out.
+    double* __restrict const px = columns.x.data();
+    double* __restrict const py = columns.y.data();
+    double* __restrict const pz = columns.z.data();
+    double* __restrict const wx = columns.vx.data();
+    double* __restrict const wy = columns.vy.data();
+    double* __restrict const wz = columns.vz.data();
+    double* __restrict const clock = columns.clock.data();
+    double* __restrict const radius = columns.radius.data();
+    for (int k = 0; k < count; ++k) {
+      const Flight& fj = flight[candidates[k]];
+      px[k] = fj.position.x();
+      py[k] = fj.position.y();
+      pz[k] = fj.position.z();
+      wx[k] = fj.velocity.x();
+      wy[k] = fj.velocity.y();
+      wz[k] = fj.velocity.z();
+      clock[k] = fj.clock;
+      radius[k] = fj.radius;
+    }
+    contact_times(columns, count, frame);
+    for (int k = 0; k < count; ++k) {
+      times[k] = candidates[k] == i ? kNever : times[k];
+      earliest = std::min(earliest, times[k]);
+    }
   }
-  if (partner >= 0) {
-    p.collision_time = best;
-    p.partner = partner;
-    p.partner_count = counter_[static_cast<std::size_t>(partner)];
+  // The first candidate at the earliest time, as a sequential "strictly earlier" scan picks.
+  if (earliest < p.collision_time) {
+    int k = 0;
+    while (times[k] != earliest) ++k;
+    p.collision_time = earliest;
+    p.partner = candidates[k];
+    p.partner_count = counter_[static_cast<std::size_t>(candidates[k])];
   }
 }
 
@@ -468,10 +585,16 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
   burst_count_.assign(n, 0u);
   pending_.assign(n, Pending{kNever, kNever, kNoPartner, 0u, 0});
   angular_acceleration_.resize(n);
-  heap_.assign(n + kHeapArity - 1, HeapEntry{kNever, -1});  // sentinels: see heap_update()
+  // Room to shift the heap by up to a line, so that slot 1 (the first group of children) starts
+  // one: malloc aligns to 16 bytes only. A copied collider may lose the alignment, not the order.
+  constexpr std::size_t kLine = 64, kPerLine = kLine / sizeof(HeapEntry);
+  heap_storage_.assign(n + kHeapArity - 1 + kPerLine, HeapEntry{kNever, -1});  // sentinels
+  const auto first_child = reinterpret_cast<std::uintptr_t>(heap_storage_.data() + 1);
+  heap_offset_ = (kLine - first_child % kLine) % kLine / sizeof(HeapEntry);
   heap_position_.resize(n);
+  HeapEntry* heap = this->heap();
   for (std::size_t i = 0; i < n; ++i) {
-    heap_[i] = HeapEntry{kNever, static_cast<int>(i)};
+    heap[i] = HeapEntry{kNever, static_cast<int>(i)};
     heap_position_[i] = static_cast<int>(i);
     angular_acceleration_[i] = store.torque[i] * store.inverse_inertia(i);
     domain.wrap(store.position[i]);
@@ -501,8 +624,9 @@ EventStats EventDrivenCollider::advance_to(ParticleStore& store, const Domain& d
   predictions_ = pair_checks_ = 0;
   const std::size_t n = store.size();
   if (n != flight_.size()) throw std::logic_error("EventDrivenCollider: store changed size");
-  while (n > 0 && heap_[0].time <= target) {
-    const int i = heap_[0].particle;
+  const HeapEntry* heap = this->heap();
+  while (n > 0 && heap[0].time <= target) {
+    const int i = heap[0].particle;
     const auto a = static_cast<std::size_t>(i);
     Pending& p = pending_[a];
     now_ = key(i);

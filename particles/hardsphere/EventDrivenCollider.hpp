@@ -19,12 +19,16 @@
 // owns a fixed block of ints, its occupancy followed by its particles' indices. A scan lists the
 // adjacent cells (from a grid padded with one layer of wrapped or empty cells, or, for interior
 // cells of large grids, by index arithmetic), gathers their particles by copying whole blocks and
-// advancing by the occupancy (no branch per cell, no list chasing), copies the candidates' flight
-// states into columns and takes all contact times in one loop without data-dependent branches
-// (minimum image and "never" by selects) that the compiler vectorises, for AVX2 too where the
-// machine has it. The arithmetic is that of ballistic_contact_time_or_never, so none of this
-// changes a result. A cell that overflows its block doubles every block (rare: blocks start with
-// room above the fullest cell at binning).
+// advancing by the occupancy (no branch per cell, no list chasing), and takes all contact times
+// in one pass without data-dependent branches (minimum image and "never" by selects). Where the
+// machine has AVX2 (x86-64, picked at run time) that pass reads four candidates' Flight lines and
+// transposes them in registers into columns; elsewhere it copies the flight states into columns
+// and leaves the loop to the compiler's vectoriser. Both do the arithmetic of
+// ballistic_contact_time_or_never in the same order (no FMA), and the earliest candidate is the
+// first at the minimum, as a sequential scan would pick: none of this changes a result. The next
+// cell crossing is picked by selects too, and the 4-ary heap is laid out so that each group of
+// four children is one cache line. A cell that overflows its block doubles every block (rare:
+// blocks start with room above the fullest cell at binning).
 #include <array>
 #include <cstdint>
 #include <vector>
@@ -33,6 +37,13 @@
 #include "particles/ParticleStore.hpp"
 #include "particles/hardsphere/CollisionImpulse.hpp"
 #include "particles/hardsphere/CollisionRecord.hpp"
+
+// scan() has an AVX2 kernel, picked at run time, where the compiler can target it.
+#if defined(__x86_64__) && defined(__GNUC__)
+#define GRAINWAVE_AVX2_SCAN 1
+#else
+#define GRAINWAVE_AVX2_SCAN 0
+#endif
 
 namespace grainwave::particles::hardsphere {
 
@@ -78,13 +89,15 @@ class EventDrivenCollider {
   static constexpr int kScanLanes = 4;  ///< scan() pads its candidates to a multiple of this
   static constexpr std::size_t kCachedPaddedCells = 1 << 16;  ///< 256 KiB of cell indices
 
-  /// Compact per-particle flight state (one cache line): what the pair scan reads.
+  /// Compact per-particle flight state (one cache line): what the pair scan reads, as two rows
+  /// of four doubles (contact_times_avx2() loads them whole).
   struct alignas(64) Flight {
     Vec3 position;
     double clock;  ///< time at which position and velocity are valid
     Vec3 velocity;
     double radius;
   };
+  static_assert(sizeof(Vec3) == 3 * sizeof(double));
   /// The particle's pending events: earliest predicted collision and next cell crossing.
   struct Pending {
     double collision_time;
@@ -117,6 +130,10 @@ class EventDrivenCollider {
   };
   /// columns.time[k] = absolute contact time with candidate k, or +inf if they never touch.
   static void contact_times(CandidateColumns& columns, int count, const ScanFrame& frame);
+  /// The same times for a count that is a multiple of 4, read from the candidates' Flight lines,
+  /// written to times, +inf for `self`; returns the earliest.
+  static double contact_times_avx2(const Flight* flight, const int* candidates, int count,
+                                   int self, const ScanFrame& frame, double* times);
   /// Puts particle i into `cell` (its block must have room: grow_cells() first) or takes it out.
   void bin(int i, int cell);
   void unbin(int i);
@@ -132,6 +149,7 @@ class EventDrivenCollider {
   void heap_update(int i);
 
   EventDrivenSettings settings_;
+  bool avx2_ = false;  ///< whether scan() uses contact_times_avx2()
   std::vector<CollisionRecord>* log_ = nullptr;
   Vec3 acceleration_ = Vec3::Zero();
   bool accelerated_ = false;
@@ -170,7 +188,12 @@ class EventDrivenCollider {
     double time;  ///< key() of the particle, cached for the sift loops
     int particle;
   };
-  std::vector<HeapEntry> heap_;              ///< indexed 4-ary min-heap of particles by key()
+  /// Indexed 4-ary min-heap of particles by key(), with kHeapArity - 1 sentinels after its end:
+  /// heap_storage_ from heap_offset_ on, placed so that every group of four children is one
+  /// cache line (see initialize()).
+  std::vector<HeapEntry> heap_storage_;
+  std::size_t heap_offset_ = 0;
+  HeapEntry* heap() { return heap_storage_.data() + heap_offset_; }
   std::vector<int> heap_position_;
   long predictions_ = 0, pair_checks_ = 0;
 };
