@@ -313,6 +313,9 @@ namespace {
     x[k] = _mm256_set1_pd(f.position[k]);
     v[k] = _mm256_set1_pd(f.velocity[k]);
   }
+  // All candidates' lines are requested before the arithmetic, whose long division and square
+  // root chains would otherwise hold back the later groups' loads (cache misses for large N).
+  for (int k = 0; k < count; ++k) __builtin_prefetch(flight + candidates[k]);
   const __m128i self4 = _mm_set1_epi32(self);
   __m256d earliest = never;
   for (int k = 0; k < count; k += 4) {
