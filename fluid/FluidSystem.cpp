@@ -331,6 +331,8 @@ FluidModel<Dim>::FluidModel(const Scene& scene) {
   if (config_.min_level > config_.max_level) s.fail("min_level", "min_level must not exceed max_level");
   config_.order = static_cast<int>(s.integer("order"));
   if (config_.order != 4 && config_.order != 6) s.fail("order", "the interpolation order is 4 or 6");
+  config_.ghost_order = static_cast<int>(s.integer("ghost_order"));
+  if (config_.ghost_order != 4 && config_.ghost_order != 6) s.fail("ghost_order", "the ghost interpolation order is 4 or 6");
   config_.ghosts = std::max(config_.order - 1, kStencilReach);
   config_.fields = {"rho"};
   for (int a = 0; a < Dim; ++a) config_.fields.push_back(std::string("m") + "xyz"[a]);
@@ -1903,9 +1905,11 @@ void FluidSystem::declare(SceneSchema& schema) {
   s.integer("block_size", 16, "collocation points per block and axis (even)").in_range(8, wavelet::kMaxBlockSize);
   s.integer("min_level", 0, "coarsest level Jmin").in_range(0, 20);
   s.integer("max_level", 4, "finest level Jmax").in_range(0, 20);
-  s.integer("order", 4,
-            "Deslauriers-Dubuc interpolation order (4 or 6); with 4, derivatives at level interfaces are of order 3 "
-            "(first) and 2 (second), with 6 of order 4 (wider ghost layers)")
+  s.integer("order", 4, "Deslauriers-Dubuc interpolation order of the wavelets (4 or 6; 6 needs wider ghost layers)")
+      .in_range(4, 6);
+  s.integer("ghost_order", 6,
+            "order (4 or 6) of the interpolation filling ghost points from a coarser block; derivatives at level "
+            "interfaces are of order 4 with 6, of order 3 (first) and 2 (second) with 4")
       .in_range(4, 6);
   s.flag("adaptive", true, "adapt the grid (false: uniform at max_level)");
   s.integer("adapt_every", 1, "steps between adaptations").at_least(1);

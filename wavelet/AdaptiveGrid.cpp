@@ -77,6 +77,9 @@ AdaptiveGrid<Dim>::AdaptiveGrid(GridConfig<Dim> config, MPI_Comm comm)
     throw std::invalid_argument("AdaptiveGrid: block size must be even, 8.." + std::to_string(kMaxBlockSize));
   if (config_.order != 4 && config_.order != 6)
     throw std::invalid_argument("AdaptiveGrid: interpolation order must be 4 or 6");
+  if (config_.ghost_order == 0) config_.ghost_order = config_.order;
+  if (config_.ghost_order != 4 && config_.ghost_order != 6)
+    throw std::invalid_argument("AdaptiveGrid: ghost interpolation order must be 4 or 6");
   if (config_.min_level < 0 || config_.min_level > config_.max_level)
     throw std::invalid_argument("AdaptiveGrid: need 0 <= min_level <= max_level");
   // Prediction of the last odd point reads order - 1 points beyond it; derivatives accuracy / 2.
@@ -89,7 +92,7 @@ AdaptiveGrid<Dim>::AdaptiveGrid(GridConfig<Dim> config, MPI_Comm comm)
     const auto au = static_cast<std::size_t>(a);
     if (!(config_.hi[au] > config_.lo[au])) throw std::invalid_argument("AdaptiveGrid: empty domain");
     // A non-periodic line needs `order` coarse points at the coarsest level for one-sided rows.
-    if (!config_.periodic[au] && config_.roots[au] * bs / 2 < config_.order)
+    if (!config_.periodic[au] && config_.roots[au] * bs / 2 < std::max(config_.order, config_.ghost_order))
       throw std::invalid_argument("AdaptiveGrid: too few points for the interpolation order");
   }
   MPI_Comm_rank(comm_, &rank_);
@@ -341,7 +344,7 @@ struct PointResolver {
         st[au].even[0] = idx[au];
         st[au].weight[0] = 1.0;
       } else {
-        st[au] = dd_line(config.order, idx[au], points_along(a, level), config.periodic[au]);
+        st[au] = dd_line(config.ghost_order, idx[au], points_along(a, level), config.periodic[au]);
       }
     }
     std::array<int, Dim> k{};

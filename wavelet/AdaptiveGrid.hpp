@@ -17,9 +17,13 @@
 // non-periodic domain edges) along the axes where the index is odd; d = 0 for all-even points
 // (they belong to level j-1). The value at any (level, index) of the domain is defined from the
 // leaves alone: a leaf at that level holds it, a finer leaf holds it by injection (its point
-// coincides), a coarser leaf predicts it by P. Ghost points are filled by exactly this rule, so
+// coincides), a coarser leaf predicts it by P. Ghost points are filled by this rule, so
 // reconstruction is perfect: refining every block by P reproduces the sampled field up to the
-// discarded (insignificant) coefficients.
+// discarded (insignificant) coefficients. A caller may predict ghosts from a coarser leaf with a
+// higher order than the wavelets' (GridConfig::ghost_order): that changes only ghosts at odd
+// indices, which no wavelet coefficient reads (the points a refinement predicts next to a coarser
+// block do, and are then the more accurate), and gives derivatives their full order at level
+// interfaces.
 //
 // Adaptation (the cycle is written once, in adapt()): tag -> refine -> coarsen -> 2:1 balance ->
 // repartition -> ghost rebuild. Significance: |d| > epsilon * scale(field), scale 1 (absolute)
@@ -75,6 +79,11 @@ struct GridConfig {
   int min_level = 0;                 ///< Jmin: the grid never coarsens below it
   int max_level = 4;                 ///< Jmax
   int order = 4;                     ///< Deslauriers-Dubuc interpolation order: 4 or 6
+  /// Order of the interpolation that fills ghost points from a coarser leaf (4 or 6; 0: `order`).
+  /// Only ghosts at odd indices, which derivatives read and wavelet coefficients never do, depend
+  /// on it: a derivative of accuracy a at a level interface is of order min(a, p_g - 1) (first)
+  /// and min(a, p_g - 2) (second), so 4th-order derivatives everywhere need p_g = 6.
+  int ghost_order = 0;
   int ghosts = 0;                    ///< ghost layers; 0 takes the least the stencils need
   int derivative_accuracy = 4;       ///< finite-difference order of the derivative operators
   CurveOrder curve = CurveOrder::kHilbert;

@@ -414,12 +414,12 @@ TEST(AdaptiveGrid, GroupedAndSeparateNormalisation) {
 // Derivatives at every active point of a mixed-level periodic grid (one-sided closures are
 // tested in test_stencils.cpp), every level moved up by one. The scheme is the finite
 // differences of order `accuracy` together with the ghosts a fine block predicts from a coarser
-// neighbour, whose error is O(h^p) for interpolation of order p, divided by h or h^2: orders
-// min(accuracy, p - 1) and min(accuracy, p - 2). The field's phase keeps its fourth derivative
+// neighbour, whose error is O(h^p) for ghost interpolation of order p, divided by h or h^2:
+// orders min(accuracy, p - 1) and min(accuracy, p - 2). The field's phase keeps its fourth derivative
 // (the predicted ghosts' leading error) away from zero at the level interfaces (x = 0, 1/2); a
 // pure sine there hid that error and showed one order more.
 template <int Dim>
-void derivative_orders(int accuracy, int order, std::array<double, 2> expected) {
+void derivative_orders(int accuracy, int order, std::array<double, 2> expected, int ghost_order = 0) {
   std::array<std::array<double, 3>, 2> err{};
   auto u = [](const std::array<double, Dim>& x) {
     double v = 0;
@@ -431,6 +431,7 @@ void derivative_orders(int accuracy, int order, std::array<double, 2> expected) 
   for (int shift = 0; shift < 3; ++shift) {
     auto c = unit_box<Dim>(true, 1 + shift, 5, order);
     c.derivative_accuracy = accuracy;
+    c.ghost_order = ghost_order;
     gw::AdaptiveGrid<Dim> grid(c);
     refine_left_half(grid);
     grid.sample([&](const auto& x, std::span<double> v) { v[0] = u(x); v[1] = 0; });
@@ -443,20 +444,23 @@ void derivative_orders(int accuracy, int order, std::array<double, 2> expected) 
   for (int m = 0; m < 2; ++m) {
     // The last pair: the coarsest grid (16 points across) is not yet asymptotic.
     const double measured = std::log2(err[m][1] / err[m][2]);
-    if (root()) std::printf("%dD d%d/dx%d, accuracy %d, interpolation %d: errors %.3e %.3e %.3e, order %.2f\n", Dim, m + 1, m + 1, accuracy, order, err[m][0], err[m][1], err[m][2], measured);
+    if (root()) std::printf("%dD d%d/dx%d, accuracy %d, interpolation %d, ghosts %d: errors %.3e %.3e %.3e, order %.2f\n", Dim, m + 1, m + 1, accuracy, order, ghost_order ? ghost_order : order, err[m][0], err[m][1], err[m][2], measured);
     EXPECT_NEAR(measured, expected[static_cast<std::size_t>(m)], 0.2) << "derivative " << m + 1;
   }
 }
 TEST(AdaptiveGrid, DerivativeOrders1D) {
   derivative_orders<1>(2, 4, {2, 2});
   derivative_orders<1>(4, 6, {4, 4});
-  // The default pairing (4th-order derivatives, 4th-order interpolation) is of order 3 for
-  // first and 2 for second derivatives at coarse-fine interfaces (4 away from them).
+  // 4th-order derivatives with 4th-order ghost interpolation are of order 3 for first and 2 for
+  // second derivatives at coarse-fine interfaces (4 away from them); with 6th-order ghosts (the
+  // fluid's default) and 4th-order wavelets, of order 4.
   derivative_orders<1>(4, 4, {3, 2});
+  derivative_orders<1>(4, 4, {4, 4}, 6);
 }
 TEST(AdaptiveGrid, DerivativeOrders2D) {
   derivative_orders<2>(4, 6, {4, 4});
   derivative_orders<2>(4, 4, {3, 2});
+  derivative_orders<2>(4, 4, {4, 4}, 6);
 }
 
 TEST(AdaptiveGrid, RebuildFromLeavesReproducesTheForest) {
