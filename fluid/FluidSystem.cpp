@@ -370,7 +370,16 @@ FluidModel<Dim>::FluidModel(const Scene& scene) {
     std::filesystem::path path(name);
     if (path.is_relative() && s.location("initial_file").file == scene.file())
       path = std::filesystem::path(scene.file()).parent_path() / path;
-    initial_.file = std::make_shared<const InitialFieldFile>(path, Dim, s.location("initial_file"), s.qualified("initial_file"));
+    std::array<double, 3> lo{}, hi{};
+    std::array<bool, 3> periodic{};
+    for (int a = 0; a < Dim; ++a) {
+      const auto au = static_cast<std::size_t>(a);
+      lo[au] = config_.lo[au];
+      hi[au] = config_.hi[au];
+      periodic[au] = config_.periodic[au];
+    }
+    initial_.file = std::make_shared<const InitialFieldFile>(path, Dim, lo, hi, periodic, s.location("initial_file"),
+                                                             s.qualified("initial_file"));
   }
   initial_.gamma = gamma_;
   const auto& l = s.reals("left");

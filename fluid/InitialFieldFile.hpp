@@ -12,9 +12,11 @@
 // Interpolation: tensor-product Lagrange through the 4 samples around the point (cubic, 4th
 // order, matching the solver's 4th-order derivatives), the stencil shifted inwards near the
 // first and last samples, fewer points where an axis has fewer than 4 samples; multilinear where
-// the cubic would give rho <= 0 or p <= 0 (next to a jump in the data). A point outside
-// the sampled box (beyond a round-off) is an input error naming the file and the point: the file
-// must cover the domain. The thresholding then decides where the adaptive grid needs the detail.
+// the cubic would give rho <= 0 or p <= 0 (next to a jump in the data). The samples must cover
+// the domain box [lo, hi] of every axis (checked when the file is read, identically on every
+// rank, so no rank fails alone later). On a periodic axis the samples may instead be one period
+// without the repeated end point (n samples spaced L / n); the stencils then wrap around. The
+// thresholding then decides where the adaptive grid needs the detail.
 #include <array>
 #include <cstddef>
 #include <filesystem>
@@ -27,11 +29,13 @@ namespace grainwave::fluid {
 
 class InitialFieldFile {
  public:
-  /// Reads and checks the file for a `dimension`-D scene (all ranks read it whole). `where` and
-  /// `key` name the scene entry that gave the path, for errors about the file as a whole.
-  /// Throws InputError (exit code 2) for a missing or malformed file, a missing dataset or
-  /// attribute, a wrong length, or a sample with rho <= 0 or p <= 0 (naming its indices).
-  InitialFieldFile(const std::filesystem::path& path, int dimension, const InputLocation& where,
+  /// Reads and checks the file for a `dimension`-D scene on the box [lo, hi] (periodic axes as
+  /// flagged); all ranks read it whole. `where` and `key` name the scene entry that gave the path.
+  /// Throws InputError (exit code 2) for a missing or malformed file, a missing or mistyped
+  /// dataset or attribute, a wrong length, a sample with rho <= 0 or p <= 0 (naming its indices),
+  /// or samples that do not cover the box.
+  InitialFieldFile(const std::filesystem::path& path, int dimension, const std::array<double, 3>& lo,
+                   const std::array<double, 3>& hi, const std::array<bool, 3>& periodic, const InputLocation& where,
                    const std::string& key);
 
   /// rho, u_0 .. u_{dimension-1}, p at x (x has `dimension` coordinates).
@@ -44,8 +48,12 @@ class InitialFieldFile {
   /// Tensor-product Lagrange through `points` (<= 4) samples per axis around x.
   std::array<double, 5> interpolate(const double* x, int points) const;
 
+  void read(const std::array<double, 3>& lo, const std::array<double, 3>& hi, const std::array<bool, 3>& periodic);
+
   std::filesystem::path path_;
+  std::string key_;
   int dimension_;
+  std::array<bool, 3> wrap_{};  ///< periodic axis sampled as one period without its end point
   std::array<int, 3> n_{1, 1, 1};
   std::array<double, 3> lo_{}, hi_{};
   /// Per sample (x fastest): rho, u_0 .. u_{dimension-1}, p, packed.

@@ -21,9 +21,11 @@
 // reconstruction is perfect: refining every block by P reproduces the sampled field up to the
 // discarded (insignificant) coefficients. A caller may predict ghosts from a coarser leaf with a
 // higher order than the wavelets' (GridConfig::ghost_order): that changes only ghosts at odd
-// indices, which no wavelet coefficient reads (the points a refinement predicts next to a coarser
-// block do, and are then the more accurate), and gives derivatives their full order at level
-// interfaces.
+// indices, which no wavelet coefficient reads, so the thresholding is the same; derivatives get
+// their full order at level interfaces. The rule above then holds for the wavelets' points but not
+// for those odd ghosts: a block refined next to a coarser one predicts its new points from them
+// (with `order`), so they differ from the ghost values its fine neighbour held there by the
+// difference of the two interpolations (O(h^4)).
 //
 // Adaptation (the cycle is written once, in adapt()): tag -> refine -> coarsen -> 2:1 balance ->
 // repartition -> ghost rebuild. Significance: |d| > epsilon * scale(field), scale 1 (absolute)

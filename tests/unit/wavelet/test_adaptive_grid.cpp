@@ -463,6 +463,35 @@ TEST(AdaptiveGrid, DerivativeOrders2D) {
   derivative_orders<2>(4, 4, {4, 4}, 6);
 }
 
+// The ghost interpolation order changes only odd ghosts, which no wavelet coefficient reads: grids
+// adapted to the same field with 4th- and 6th-order ghosts have the same blocks, before and after
+// adaptation cycles, while the derivatives next to level interfaces do differ.
+TEST(AdaptiveGrid, GhostOrderLeavesThresholdingAlone) {
+  gw::ThresholdConfig th;
+  th.epsilon = 1e-3;
+  th.groups = {0, -1};
+  auto sample = [](const auto& x, std::span<double> v) { v[0] = disc_2d(x); v[1] = 0; };
+  std::vector<std::vector<gw::BlockKey<2>>> keys;
+  std::vector<std::vector<double>> derivatives;
+  for (const int ghost_order : {4, 6}) {
+    auto c = unit_box<2>(false, 1, 4);
+    c.ghost_order = ghost_order;
+    gw::AdaptiveGrid<2> grid(c);
+    grid.adapt_to_function(th, sample);
+    for (int k = 0; k < 3; ++k) grid.adapt_cycle(th);
+    keys.emplace_back();
+    for (std::size_t s = 0; s < grid.local_blocks(); ++s) keys.back().push_back(grid.key(s));
+    grid.first_derivative(0, 0, 1);
+    derivatives.emplace_back();
+    for (std::size_t s = 0; s < grid.local_blocks(); ++s) {
+      const auto d = grid.block(1, s);
+      derivatives.back().insert(derivatives.back().end(), d.begin(), d.end());
+    }
+  }
+  EXPECT_EQ(keys[0], keys[1]);
+  EXPECT_NE(derivatives[0], derivatives[1]);
+}
+
 TEST(AdaptiveGrid, RebuildFromLeavesReproducesTheForest) {
   gw::AdaptiveGrid<2> grid(unit_box<2>(true, 1, 4));
   gw::ThresholdConfig th;
