@@ -49,7 +49,7 @@ double first_descent(double c, double b, double a, bool outside_is_now) {
 EventDrivenCollider::EventDrivenCollider(EventDrivenSettings settings) : settings_(settings) {
   validate(settings_.law, "hardsphere");
 #if GRAINWAVE_AVX2_SCAN
-  avx2_ = __builtin_cpu_supports("avx2");
+  avx2_ = settings_.vector_scan && __builtin_cpu_supports("avx2");
 #endif
 }
 

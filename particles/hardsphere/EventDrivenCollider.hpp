@@ -49,6 +49,9 @@ namespace grainwave::particles::hardsphere {
 
 struct EventDrivenSettings {
   CollisionLaw law{};
+  /// Use the AVX2 pair scan where the machine has it; false takes the portable scan everywhere
+  /// (the results are bitwise the same: the test comparing the two needs this switch).
+  bool vector_scan = true;
 };
 
 struct EventStats {
