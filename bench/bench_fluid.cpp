@@ -1,10 +1,11 @@
 // Throughput of the fluid right-hand side on one block (items = point-RHS evaluations per
-// second): primitives over the block with ghosts, then the split-form convection along every axis
-// (Euler), optionally with the shock sensor and dissipation, in 1D, 2D and 3D. The viscous terms
+// second): primitives over the block with ghosts, then the flux-form split convection along every
+// axis (Euler), optionally with the shock sensor, dissipation and positivity check, in 1D, 2D and 3D. The viscous terms
 // live inside the solver; Navier-Stokes throughput is measured on whole runs instead (every fluid
 // summary.json reports point_rhs_per_s and rhs_evaluation_s; bench/adapt_cost.py prints them).
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <vector>
@@ -38,14 +39,25 @@ void BM_EulerRhsBlock(benchmark::State& state) {
   std::vector<double> rho(volume), p(volume), e(volume), wave(volume), psi(volume);
   std::array<std::vector<double>, Dim> u;
   for (auto& v : u) v.resize(volume);
-  std::vector<std::ptrdiff_t> interior;
-  for (std::size_t at = 0; at < volume; ++at) {
-    const auto i = shape.coords(static_cast<std::ptrdiff_t>(at));
-    bool inside = true;
-    for (int c : i) inside = inside && c >= g && c < g + bs;
-    if (inside) interior.push_back(static_cast<std::ptrdiff_t>(at));
+  std::size_t points = 1;
+  for (int a = 0; a < Dim; ++a) points *= static_cast<std::size_t>(bs);
+  // Lines of interior points along each axis: first array point and first interior number.
+  std::array<std::vector<std::pair<std::ptrdiff_t, std::size_t>>, Dim> lines;
+  std::array<std::size_t, Dim> point_stride{};
+  for (int a = 0; a < Dim; ++a) {
+    std::size_t step = 1;
+    for (int b = 0; b < a; ++b) step *= static_cast<std::size_t>(bs);
+    point_stride[static_cast<std::size_t>(a)] = step;
+    for (std::size_t k = 0; k < points; ++k) {
+      if ((k / step) % static_cast<std::size_t>(bs) != 0) continue;
+      std::array<int, Dim> i{};
+      std::size_t rest = k;
+      for (int b = 0; b < Dim; ++b) i[static_cast<std::size_t>(b)] = static_cast<int>(rest % static_cast<std::size_t>(bs)) + g, rest /= static_cast<std::size_t>(bs);
+      lines[static_cast<std::size_t>(a)].emplace_back(shape.index(i), k);
+    }
   }
-  std::vector<double> out(interior.size() * kFields);
+  std::vector<double> out(points * kFields);
+  gf::LineScratch<Dim> scratch(bs);
   gf::BlockPrimitives<Dim> w{rho.data(), {}, p.data(), e.data()};
   for (int a = 0; a < Dim; ++a) w.u[static_cast<std::size_t>(a)] = u[static_cast<std::size_t>(a)].data();
   std::array<const double*, kFields> qp{};
@@ -54,26 +66,27 @@ void BM_EulerRhsBlock(benchmark::State& state) {
   for (int a = 0; a < Dim; ++a) u_out[static_cast<std::size_t>(a)] = u[static_cast<std::size_t>(a)].data();
   for (auto _ : state) {
     gf::block_primitives<Dim>(qp, volume, 1.4, rho.data(), u_out, e.data(), p.data());
-    for (std::size_t k = 0; k < interior.size(); ++k) {
-      double* o = out.data() + k * kFields;
-      for (int f = 0; f < kFields; ++f) o[f] = 0;
-      for (int a = 0; a < Dim; ++a) gf::add_split_convection<Dim>(w, interior[k], shape.stride(a), a, 100.0, o);
-    }
-    if (capturing)
-      for (int a = 0; a < Dim; ++a) {
-        const std::ptrdiff_t stride = shape.stride(a);
+    std::fill(out.begin(), out.end(), 0.0);
+    for (int a = 0; a < Dim; ++a) {
+      const auto au = static_cast<std::size_t>(a);
+      const std::ptrdiff_t stride = shape.stride(a);
+      gf::FaceDissipation dissipation;
+      if (capturing) {
         for (std::size_t at = static_cast<std::size_t>(stride); at + static_cast<std::size_t>(stride) < volume; ++at) {
-          wave[at] = std::abs(u[static_cast<std::size_t>(a)][at]) + std::sqrt(1.4 * p[at] / rho[at]);
+          wave[at] = std::abs(u[au][at]) + std::sqrt(1.4 * p[at] / rho[at]);
           psi[at] = gf::second_difference_sensor(p.data(), static_cast<std::ptrdiff_t>(at), stride);
         }
-        for (std::size_t k = 0; k < interior.size(); ++k)
-          gf::add_shock_dissipation<Dim>(qp, psi.data(), wave.data(), interior[k], stride, 1.2, 1e-3, 100.0,
-                                         out.data() + k * kFields);
+        dissipation = {psi.data(), wave.data(), 1.2, 1e-3};
       }
+      // sigma of a CFL-0.4 step: the positivity check runs on every face (and changes none).
+      for (const auto& [first, point] : lines[au])
+        gf::add_line_divergence<Dim>(w, qp, first, stride, bs, a, 100.0, dissipation, capturing ? 0.4 : 0.0, 1.4,
+                                     scratch, out.data() + point, points, point_stride[au]);
+    }
     benchmark::DoNotOptimize(out.data());
     benchmark::ClobberMemory();
   }
-  state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(interior.size()));
+  state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(points));
 }
 
 }  // namespace

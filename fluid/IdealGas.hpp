@@ -85,4 +85,10 @@ double max_wave_speed(const Primitive<Dim>& w, double gamma) {
   return s;
 }
 
+/// Characteristic speed |u_a| + c along one axis.
+template <int Dim>
+double max_wave_speed_along(const Primitive<Dim>& w, int a, double gamma) {
+  return std::abs(w.u[static_cast<std::size_t>(a)]) + sound_speed(w.rho, w.p, gamma);
+}
+
 }  // namespace grainwave::fluid
