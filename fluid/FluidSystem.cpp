@@ -11,7 +11,7 @@
 
 #include "core/Error.hpp"
 #include "core/Mpi.hpp"
-#include "fluid/ErkIntegrator.hpp"
+#include "fluid/TimeIntegrator.hpp"
 #include "fluid/ExactSolutions.hpp"
 #include "fluid/FluidBoundaries.hpp"
 #include "fluid/IdealGas.hpp"
@@ -248,7 +248,8 @@ class FluidModel : public io::System {
   bool no_slip_walls_ = false;
   EdgeGas edge_gas_;
   std::unique_ptr<AdaptiveGrid<Dim>> grid_, good_;
-  std::unique_ptr<ErkIntegrator> integrator_;
+  std::unique_ptr<TimeIntegrator> integrator_;
+  bool imex_ = false;  ///< the Brinkman relaxation in the integrator's implicit part (else Strang-split)
   RunStats stats_, good_stats_;
 
   // Per-block scratch (one block with ghosts), sized once: no allocation inside the RHS.
@@ -299,6 +300,10 @@ class FluidModel : public io::System {
   wavelet::ForcedRegion<Dim> forced_region(double t) const;
   void update_masks(double t);
   void relax_brinkman(double tau);
+  /// IMEX: the Brinkman relaxation terms as the implicit right-hand side f_I (pointwise, on the
+  /// integrator's vector), and the exact solve of (I - gamma df_I/dq) z = r, point by point.
+  int brinkman_rhs(std::span<const double> y, std::span<double> ydot) const;
+  int brinkman_solve(std::span<const double> y, std::span<const double> r, std::span<double> z, double gamma) const;
   void compute_primitives(std::size_t slot);
   void add_penalization(std::size_t slot, double* out);
   /// Relaxes the state towards the face's reference state in layers along non-periodic edges.
@@ -463,13 +468,20 @@ FluidModel<Dim>::FluidModel(const Scene& scene) {
   if (initial_.kind == InitialKind::kVortex && Dim < 2) s.fail("initial", "the isentropic vortex needs dimension 2 or 3");
 
   const std::string scheme = s.text("time_integrator");
-  integrator_ = std::make_unique<ErkIntegrator>(
+  integrator_ = std::make_unique<TimeIntegrator>(
       MPI_COMM_WORLD,
       scheme == "rk4"      ? TimeScheme::kRk4
       : scheme == "ssprk3" ? TimeScheme::kSspRk3
+      : scheme == "imex"   ? TimeScheme::kImex
                            : TimeScheme::kErrorControlled,
       s.real("rtol"), s.real("atol"),
-      [this](double, std::span<const double> y, std::span<double> ydot) { return evaluate_rhs(y, ydot); });
+      [this](double, std::span<const double> y, std::span<double> ydot) { return evaluate_rhs(y, ydot); },
+      TimeIntegrator::Implicit{
+          [this](double, std::span<const double> y, std::span<double> ydot) { return brinkman_rhs(y, ydot); },
+          [this](double, std::span<const double> y, std::span<const double> residual, std::span<double> z, double gamma) {
+            return brinkman_solve(y, residual, z, gamma);
+          }});
+  imex_ = scheme == "imex";
 
   try {
     grid_ = std::make_unique<AdaptiveGrid<Dim>>(config_);
@@ -921,6 +933,66 @@ void FluidModel<Dim>::relax_brinkman(double tau) {
       brinkman_relaxation<Dim>(q, m.chi, m.u0, tau, eta_b_, body.thermal == WallThermal::kIsothermal,
                                body.wall_temperature, gamma_);
     }
+}
+
+// The relaxation terms of 002 Eq. 2.28 at fixed density, in conserved variables (k = chi / eta_b):
+//     f_(rho u) = -k (rho u - rho u0),
+//     f_E       = u . f_(rho u) - k (E_int - rho c_v T_w) [isothermal],   E_int = E - |rho u|^2 / (2 rho),
+// the rates whose exact solution brinkman_relaxation takes over a half step when they are split.
+template <int Dim>
+int FluidModel<Dim>::brinkman_rhs(std::span<const double> y, std::span<double> ydot) const {
+  std::fill(ydot.begin(), ydot.end(), 0.0);
+  const std::size_t per_block = interior_at_.size();
+  const double cv = 1 / (gamma_ * (gamma_ - 1));
+  for (std::size_t s = 0; s < masked_.size(); ++s)
+    for (const auto& m : masked_[s]) {
+      if (m.chi == 0) continue;
+      auto at = [&](int f) { return (s * kFields + static_cast<std::size_t>(f)) * per_block + m.point; };
+      const Body& body = penalization_.bodies[static_cast<std::size_t>(m.body)];
+      const double k = m.chi / eta_b_, rho = y[at(0)];
+      double work = 0, kinetic = 0;
+      for (int a = 0; a < Dim; ++a) {
+        const double momentum = y[at(a + 1)], rate = -k * (momentum - rho * m.u0[static_cast<std::size_t>(a)]);
+        ydot[at(a + 1)] = rate;
+        work += momentum / rho * rate;
+        kinetic += 0.5 * momentum * momentum / rho;
+      }
+      double heat = 0;
+      if (body.thermal == WallThermal::kIsothermal) heat = -k * (y[at(Dim + 1)] - kinetic - rho * cv * body.wall_temperature);
+      ydot[at(Dim + 1)] = work + heat;
+    }
+  return 0;
+}
+
+// The Jacobian of brinkman_rhs at a point is lower block-triangular in (rho, rho u, E):
+//     d f_(rho u) / d(rho u) = -k I,   d f_(rho u) / d rho = k u0,
+//     d f_E / d(rho u) = -2 k u + k u0 [+ k u],   d f_E / d rho = k |u|^2 [- k (|u|^2 / 2 - c_v T_w)],
+//     d f_E / dE = 0 [-k]                                  ([...]: isothermal),
+// so (I - gamma J) z = r is solved exactly by substitution: rho, then rho u, then E.
+template <int Dim>
+int FluidModel<Dim>::brinkman_solve(std::span<const double> y, std::span<const double> r, std::span<double> z,
+                                    double gamma) const {
+  std::copy(r.begin(), r.end(), z.begin());
+  const std::size_t per_block = interior_at_.size();
+  const double cv = 1 / (gamma_ * (gamma_ - 1));
+  for (std::size_t s = 0; s < masked_.size(); ++s)
+    for (const auto& m : masked_[s]) {
+      if (m.chi == 0) continue;
+      auto at = [&](int f) { return (s * kFields + static_cast<std::size_t>(f)) * per_block + m.point; };
+      const bool isothermal = penalization_.bodies[static_cast<std::size_t>(m.body)].thermal == WallThermal::kIsothermal;
+      const double k = m.chi / eta_b_, gk = gamma * k, rho = y[at(0)], z_rho = r[at(0)];
+      double coupling = 0, u2 = 0;  // gamma (d f_E / d(rho u) . z_(rho u) + d f_E / d rho z_rho)
+      for (int a = 0; a < Dim; ++a) {
+        const double u0 = m.u0[static_cast<std::size_t>(a)], u = y[at(a + 1)] / rho;
+        const double z_m = (r[at(a + 1)] + gk * u0 * z_rho) / (1 + gk);
+        z[at(a + 1)] = z_m;
+        coupling += gk * ((isothermal ? -u : -2 * u) + u0) * z_m;
+        u2 += u * u;
+      }
+      coupling += gk * (isothermal ? u2 - (0.5 * u2 - cv * penalization_.bodies[static_cast<std::size_t>(m.body)].wall_temperature) : u2) * z_rho;
+      z[at(Dim + 1)] = (r[at(Dim + 1)] + coupling) / (isothermal ? 1 + gk : 1.0);
+    }
+  return 0;
 }
 
 template <int Dim>
@@ -1466,7 +1538,7 @@ void FluidModel<Dim>::advance(double t, double dt) {
     // Brinkman relaxation integrated exactly on either side of the explicit step (Strang).
     ScopedTimer timer(timers_, "penalization");
     update_masks(t + 0.5 * dt);
-    relax_brinkman(0.5 * dt);
+    if (!imex_) relax_brinkman(0.5 * dt);
   }
   int flag = 0;
   {
@@ -1477,7 +1549,7 @@ void FluidModel<Dim>::advance(double t, double dt) {
     flag = integrator_->step(t, dt);
     unpack(y);  // ARKODE wrote the result into the same vector
   }
-  if (penalized()) {
+  if (penalized() && !imex_) {
     ScopedTimer timer(timers_, "penalization");
     relax_brinkman(0.5 * dt);
   }
@@ -1763,6 +1835,12 @@ void FluidModel<Dim>::report(io::Json& counts, io::Json& metrics, double step_wa
   const double uniform = grid_->uniform_points();
   const double points = wavelet::report_grid_counts(*grid_, counts);
   counts.set("rhs_evaluations", integrator_->rhs_evaluations());
+  if (imex_) {
+    const auto implicit = integrator_->implicit_counts();
+    counts.set("implicit_rhs_evaluations", implicit.rhs_evaluations);
+    counts.set("newton_iterations", implicit.newton_iterations);
+    counts.set("gmres_iterations", implicit.linear_iterations);
+  }
   if (positivity_limiter_) counts.set("positivity_limited_faces", mpi::sum(static_cast<double>(limited_faces_)));
 
   const auto [mass, energy] = totals();
@@ -1974,10 +2052,13 @@ void FluidSystem::declare(SceneSchema& schema) {
       .one_of({"linf", "absolute"});
   s.real("gamma", 1.4, "ratio of specific heats").above(1);
   s.real("cfl", 0.8, "Courant number of the step: dt = cfl / max sum_a (|u_a| + c) / h_a").above(0);
-  s.text("time_integrator", "rk4", "rk4, ssprk3 (fixed CFL step) or error_control (embedded ERK)")
-      .one_of({"rk4", "ssprk3", "error_control"});
-  s.real("rtol", 1e-6, "relative tolerance of error_control").above(0);
-  s.real("atol", 1e-9, "absolute tolerance of error_control").above(0);
+  s.text("time_integrator", "rk4",
+         "rk4, ssprk3 (fixed CFL step), error_control (embedded ERK) or imex (ARKODE ARK4(3)6L, CFL step: the "
+         "stiff Brinkman relaxation of bodies implicit, by Newton + preconditioned GMRES, instead of split off "
+         "and integrated exactly)")
+      .one_of({"rk4", "ssprk3", "error_control", "imex"});
+  s.real("rtol", 1e-6, "relative tolerance of error_control; of the Newton and GMRES solves of imex").above(0);
+  s.real("atol", 1e-9, "absolute tolerance of error_control; of the Newton and GMRES solves of imex").above(0);
   s.flag("shock_capturing", true, "localised artificial dissipation at shocks");
   s.flag("positivity_limiter", true,
          "limit face fluxes towards local Lax-Friedrichs where a stage would make density or pressure negative "

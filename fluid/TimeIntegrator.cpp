@@ -1,23 +1,26 @@
-#include "fluid/ErkIntegrator.hpp"
+#include "fluid/TimeIntegrator.hpp"
 
+#include <arkode/arkode_arkstep.h>
 #include <arkode/arkode_erkstep.h>
 #include <nvector/nvector_parallel.h>
 #include <sundials/sundials_context.h>
+#include <sunlinsol/sunlinsol_spgmr.h>
 
 #include <stdexcept>
 #include <vector>
 
 namespace grainwave::fluid {
 
-struct ErkIntegrator::Impl {
+struct TimeIntegrator::Impl {
   MPI_Comm comm;
   TimeScheme scheme;
   double rtol, atol;
   Rhs rhs;
+  Implicit implicit;
   SUNContext context = nullptr;
   N_Vector y = nullptr;
-  void* memory = nullptr;
-  ARKodeButcherTable table = nullptr;
+  void* memory = nullptr;           // ERKStep (error control) or ARKStep (IMEX)
+  SUNLinearSolver krylov = nullptr;  // IMEX: GMRES on vectors of the current length
   std::size_t size = 0;
   bool size_changed = true;
   long evaluations = 0;
@@ -31,52 +34,68 @@ void check(int flag, const char* what) {
   if (flag < 0) throw std::runtime_error(std::string("ARKODE: ") + what + " failed (flag " + std::to_string(flag) + ")");
 }
 
-/// Butcher tableau of classical RK4 or SSP-RK3 (ARKODE ships neither as a named ERK table).
-ARKodeButcherTable fixed_step_table(TimeScheme scheme) {
-  if (scheme == TimeScheme::kRk4) {
-    double c[4] = {0, 0.5, 0.5, 1};
-    double A[16] = {0, 0, 0, 0, 0.5, 0, 0, 0, 0, 0.5, 0, 0, 0, 0, 1, 0};
-    double b[4] = {1.0 / 6, 1.0 / 3, 1.0 / 3, 1.0 / 6};
-    return ARKodeButcherTable_Create(4, 4, 0, c, A, b, nullptr);
-  }
-  double c[3] = {0, 1, 0.5};
-  double A[9] = {0, 0, 0, 1, 0, 0, 0.25, 0.25, 0};
-  double b[3] = {1.0 / 6, 1.0 / 6, 2.0 / 3};
-  return ARKodeButcherTable_Create(3, 3, 0, c, A, b, nullptr);
-}
-
 }  // namespace
 
-ErkIntegrator::ErkIntegrator(MPI_Comm comm, TimeScheme scheme, double rtol, double atol, Rhs rhs)
-    : impl_(new Impl{comm, scheme, rtol, atol, std::move(rhs)}) {
+TimeIntegrator::TimeIntegrator(MPI_Comm comm, TimeScheme scheme, double rtol, double atol, Rhs rhs, Implicit implicit)
+    : impl_(new Impl{comm, scheme, rtol, atol, std::move(rhs), std::move(implicit)}) {
+  if (scheme == TimeScheme::kImex && !impl_->implicit.rhs) throw std::invalid_argument("IMEX needs an implicit part");
   check(SUNContext_Create(&impl_->comm, &impl_->context), "SUNContext_Create");
 }
 
-ErkIntegrator::~ErkIntegrator() {
-  if (impl_->memory) ERKStepFree(&impl_->memory);
-  if (impl_->table) ARKodeButcherTable_Free(impl_->table);
+TimeIntegrator::~TimeIntegrator() {
+  if (impl_->memory) {
+    if (impl_->scheme == TimeScheme::kImex)
+      ARKStepFree(&impl_->memory);
+    else
+      ERKStepFree(&impl_->memory);
+  }
+  if (impl_->krylov) SUNLinSolFree(impl_->krylov);
   if (impl_->y) N_VDestroy(impl_->y);
   SUNContext_Free(&impl_->context);
   delete impl_;
 }
 
 namespace {
+std::span<const double> view(N_Vector v) {
+  return {N_VGetArrayPointer_Parallel(v), static_cast<std::size_t>(N_VGetLocalLength_Parallel(v))};
+}
+std::span<double> mutable_view(N_Vector v) {
+  return {N_VGetArrayPointer_Parallel(v), static_cast<std::size_t>(N_VGetLocalLength_Parallel(v))};
+}
+
 int arkode_rhs(realtype t, N_Vector y, N_Vector ydot, void* user) {
-  auto* impl = static_cast<ErkIntegrator::Impl*>(user);
-  const auto n = static_cast<std::size_t>(N_VGetLocalLength_Parallel(y));
+  auto* impl = static_cast<TimeIntegrator::Impl*>(user);
   ++impl->evaluations;
   try {
-    return impl->rhs(t, std::span<const double>(N_VGetArrayPointer_Parallel(y), n),
-                     std::span<double>(N_VGetArrayPointer_Parallel(ydot), n));
+    return impl->rhs(t, view(y), mutable_view(ydot));
   } catch (...) {  // never unwind through ARKODE's C frames
+    return -1;
+  }
+}
+
+int arkode_implicit_rhs(realtype t, N_Vector y, N_Vector ydot, void* user) {
+  auto* impl = static_cast<TimeIntegrator::Impl*>(user);
+  try {
+    return impl->implicit.rhs(t, view(y), mutable_view(ydot));
+  } catch (...) {
+    return -1;
+  }
+}
+
+int arkode_preconditioner_solve(realtype t, N_Vector y, N_Vector, N_Vector r, N_Vector z, realtype gamma, realtype,
+                                int, void* user) {
+  auto* impl = static_cast<TimeIntegrator::Impl*>(user);
+  try {
+    return impl->implicit.solve(t, view(y), view(r), mutable_view(z), gamma);
+  } catch (...) {
     return -1;
   }
 }
 }  // namespace
 
-std::span<double> ErkIntegrator::state(std::size_t local_size) {
+std::span<double> TimeIntegrator::state(std::size_t local_size) {
   Impl& m = *impl_;
-  if (m.scheme != TimeScheme::kErrorControlled) {
+  if (m.scheme == TimeScheme::kRk4 || m.scheme == TimeScheme::kSspRk3) {
     if (m.state.size() != local_size) {
       for (auto* v : {&m.state, &m.stage, &m.k1, &m.k2, &m.k3}) v->assign(local_size, 0.0);
     }
@@ -105,7 +124,7 @@ namespace {
 /// message: ranks only meet in the right-hand side. The stage values follow the Butcher tables
 /// (RK4: c = 0, 1/2, 1/2, 1; SSP-RK3 in Shu-Osher form: y1 = y + dt f(y),
 /// y2 = 3/4 y + 1/4 (y1 + dt f(y1)), y + = 1/3 y + 2/3 (y2 + dt f(y2))).
-int fixed_step(ErkIntegrator::Impl& m, double t, double dt) {
+int fixed_step(TimeIntegrator::Impl& m, double t, double dt) {
   const std::size_t n = m.state.size();
   double* y = m.state.data();
   double* z = m.stage.data();
@@ -142,9 +161,47 @@ int fixed_step(ErkIntegrator::Impl& m, double t, double dt) {
 
 }  // namespace
 
-int ErkIntegrator::step(double t, double dt) {
+namespace {
+
+/// One IMEX step of exactly dt by ARKStep (created on first use, resized or reset after).
+int imex_step(TimeIntegrator::Impl& m, double t, double dt) {
+  auto attach_krylov = [&] {
+    // GMRES's Krylov vectors have the state's length: a new solver after every resize.
+    if (m.krylov) SUNLinSolFree(m.krylov);
+    m.krylov = SUNLinSol_SPGMR(m.y, m.implicit.solve ? SUN_PREC_LEFT : SUN_PREC_NONE, 10, m.context);
+    if (!m.krylov) throw std::runtime_error("ARKODE: cannot create the GMRES solver");
+    check(ARKStepSetLinearSolver(m.memory, m.krylov, nullptr), "ARKStepSetLinearSolver");
+    if (m.implicit.solve) check(ARKStepSetPreconditioner(m.memory, nullptr, arkode_preconditioner_solve), "ARKStepSetPreconditioner");
+  };
+  if (!m.memory) {
+    m.memory = ARKStepCreate(arkode_rhs, arkode_implicit_rhs, t, m.y, m.context);
+    if (!m.memory) throw std::runtime_error("ARKODE: ARKStepCreate failed");
+    check(ARKStepSetUserData(m.memory, &m), "ARKStepSetUserData");
+    check(ARKStepSetMaxNumSteps(m.memory, 100000), "ARKStepSetMaxNumSteps");
+    check(ARKStepSetTableNum(m.memory, ARKODE_ARK436L2SA_DIRK_6_3_4, ARKODE_ARK436L2SA_ERK_6_3_4), "ARKStepSetTableNum");
+    // The tolerances weight the Newton and GMRES convergence tests (the step itself is fixed).
+    check(ARKStepSStolerances(m.memory, m.rtol, m.atol), "ARKStepSStolerances");
+    // f_I at a solved stage follows from the stage equation itself: one f_I call less per stage.
+    check(ARKStepSetDeduceImplicitRhs(m.memory, SUNTRUE), "ARKStepSetDeduceImplicitRhs");
+    attach_krylov();
+  } else if (m.size_changed) {
+    check(ARKStepResize(m.memory, m.y, 1.0, t, nullptr, nullptr), "ARKStepResize");
+    attach_krylov();
+  } else {
+    check(ARKStepReset(m.memory, t, m.y), "ARKStepReset");
+  }
+  m.size_changed = false;
+  check(ARKStepSetFixedStep(m.memory, dt), "ARKStepSetFixedStep");
+  check(ARKStepSetStopTime(m.memory, t + dt), "ARKStepSetStopTime");
+  double reached = t;
+  return ARKStepEvolve(m.memory, t + dt, m.y, &reached, ARK_NORMAL);
+}
+
+}  // namespace
+
+int TimeIntegrator::step(double t, double dt) {
   Impl& m = *impl_;
-  if (m.scheme != TimeScheme::kErrorControlled) {
+  if (m.scheme == TimeScheme::kRk4 || m.scheme == TimeScheme::kSspRk3) {
     // ARKODE's per-step overhead for a fixed step (error weights, norms and vector reductions
     // it does not need here) was 15-17% of a 2D run: fixed steps are taken here instead.
     try {
@@ -153,18 +210,14 @@ int ErkIntegrator::step(double t, double dt) {
       return -1;  // as through ARKODE: the caller reports a failed step
     }
   }
+  if (m.scheme == TimeScheme::kImex) return imex_step(m, t, dt);
   if (!m.memory) {
     m.memory = ERKStepCreate(arkode_rhs, t, m.y, m.context);
     if (!m.memory) throw std::runtime_error("ARKODE: ERKStepCreate failed");
     check(ERKStepSetUserData(m.memory, &m), "ERKStepSetUserData");
     check(ERKStepSetMaxNumSteps(m.memory, 100000), "ERKStepSetMaxNumSteps");
-    if (m.scheme == TimeScheme::kErrorControlled) {
-      check(ERKStepSetTableNum(m.memory, ARKODE_ZONNEVELD_5_3_4), "ERKStepSetTableNum");
-      check(ERKStepSStolerances(m.memory, m.rtol, m.atol), "ERKStepSStolerances");
-    } else {
-      m.table = fixed_step_table(m.scheme);
-      check(ERKStepSetTable(m.memory, m.table), "ERKStepSetTable");
-    }
+    check(ERKStepSetTableNum(m.memory, ARKODE_ZONNEVELD_5_3_4), "ERKStepSetTableNum");
+    check(ERKStepSStolerances(m.memory, m.rtol, m.atol), "ERKStepSStolerances");
   } else if (m.size_changed) {
     // The grid adapted: same integrator, vectors of the new length.
     check(ERKStepResize(m.memory, m.y, 1.0, t, nullptr, nullptr), "ERKStepResize");
@@ -172,18 +225,32 @@ int ErkIntegrator::step(double t, double dt) {
     check(ERKStepReset(m.memory, t, m.y), "ERKStepReset");
   }
   m.size_changed = false;
-  if (m.scheme != TimeScheme::kErrorControlled) check(ERKStepSetFixedStep(m.memory, dt), "ERKStepSetFixedStep");
   check(ERKStepSetStopTime(m.memory, t + dt), "ERKStepSetStopTime");
   double reached = t;
   return ERKStepEvolve(m.memory, t + dt, m.y, &reached, ARK_NORMAL);
 }
 
-long ErkIntegrator::rhs_evaluations() const { return impl_->evaluations; }
+long TimeIntegrator::rhs_evaluations() const { return impl_->evaluations; }
 
-std::string ErkIntegrator::describe() const {
+TimeIntegrator::ImplicitCounts TimeIntegrator::implicit_counts() const {
+  ImplicitCounts counts;
+  if (impl_->scheme != TimeScheme::kImex || !impl_->memory) return counts;
+  long explicit_calls = 0, implicit_calls = 0;
+  ARKStepGetNumRhsEvals(impl_->memory, &explicit_calls, &implicit_calls);
+  ARKStepGetNumNonlinSolvIters(impl_->memory, &counts.newton_iterations);
+  ARKStepGetNumLinIters(impl_->memory, &counts.linear_iterations);
+  counts.rhs_evaluations = implicit_calls;
+  return counts;
+}
+
+TimeScheme TimeIntegrator::scheme() const { return impl_->scheme; }
+
+std::string TimeIntegrator::describe() const {
   switch (impl_->scheme) {
     case TimeScheme::kRk4: return "classical RK4, CFL step";
     case TimeScheme::kSspRk3: return "SSP-RK3 (Shu-Osher), CFL step";
+    case TimeScheme::kImex:
+      return "ARKODE ARKStep IMEX, ARK4(3)6L[2]SA, CFL step; implicit stages by Newton + preconditioned GMRES";
     default:
       return "ARKODE ERKStep, Zonneveld 5(3)4 with error control (rtol " + std::to_string(impl_->rtol) + ", atol " +
              std::to_string(impl_->atol) + ")";
