@@ -254,18 +254,11 @@ class FluidModel : public io::System {
 
   // Per-block scratch (one block with ghosts), sized once: no allocation inside the RHS.
   std::vector<std::ptrdiff_t> interior_at_;  // array index of each interior point
-  /// Lines of interior points along each axis: array index and interior number of the first.
-  struct LineStart {
-    std::ptrdiff_t first = 0;
-    std::size_t point = 0;
-  };
-  std::array<std::vector<LineStart>, Dim> lines_;
-  std::array<std::ptrdiff_t, Dim> line_point_stride_{};  // interior-number stride along each axis
-  LineScratch<Dim> line_scratch_;                        // one line's primitives and fluxes
+  BlockScratch<Dim> block_scratch_;  // the inviscid kernel's face fluxes and sensor
   bool positivity_limiter_ = true;
   double limiter_dt_ = 0;     ///< forward-Euler step the positivity limiter guards (the step's dt)
   long limited_faces_ = 0;    ///< faces the positivity limiter changed, in this process
-  std::vector<double> rho_, p_, e_, wave_, psi_, sound_;
+  std::vector<double> rho_, p_, e_, wave_;
   std::array<std::vector<double>, Dim> u_;
   // Viscous scratch: gradients of u_i along each axis, mu, |u|^2/2, and the fluxes along one axis.
   std::array<std::array<std::vector<double>, Dim>, Dim> gradient_;  // d_j u_i
@@ -542,7 +535,7 @@ void FluidModel<Dim>::layout_changed() {
   const auto shape = grid_->layout().shape();
   const std::size_t volume = shape.size();
   if (rho_.size() == volume) return;
-  for (auto* v : {&rho_, &p_, &e_, &wave_, &psi_, &sound_, &temperature_, &kinetic_}) v->assign(volume, 0.0);
+  for (auto* v : {&rho_, &p_, &e_, &wave_, &temperature_, &kinetic_}) v->assign(volume, 0.0);
   force_rhs_.assign(static_cast<std::size_t>(kFields) * grid_->points_per_block(), 0.0);
   for (auto& v : u_) v.assign(volume, 0.0);
   viscous_points_.clear();
@@ -571,16 +564,7 @@ void FluidModel<Dim>::layout_changed() {
     }
     interior_at_.push_back(shape.index(i));
   }
-  for (int a = 0; a < Dim; ++a) {
-    const auto au = static_cast<std::size_t>(a);
-    lines_[au].clear();
-    std::ptrdiff_t step = 1;
-    for (int b = 0; b < a; ++b) step *= bs;
-    line_point_stride_[au] = step;
-    for (std::size_t p = 0; p < interior_at_.size(); ++p)
-      if ((static_cast<std::ptrdiff_t>(p) / step) % bs == 0) lines_[au].push_back({interior_at_[p], p});
-  }
-  line_scratch_ = LineScratch<Dim>(bs);
+  block_scratch_ = BlockScratch<Dim>(shape.size());
 }
 
 template <int Dim>
@@ -726,9 +710,15 @@ int FluidModel<Dim>::evaluate_rhs(std::span<const double> y, std::span<double> y
     fill_boundary_ghosts();
   }
   const auto shape = grid_->layout().shape();
-  const std::size_t volume = shape.size(), per_block = interior_at_.size();
+  const std::size_t per_block = interior_at_.size();
   Stopwatch clock;
-  double convection_s = 0, capturing_s = 0, viscous_s = 0;
+  double convection_s = 0, viscous_s = 0;
+  InviscidSettings inviscid;
+  inviscid.gamma = gamma_;
+  inviscid.capturing = shock_capturing_;
+  inviscid.coefficient = capturing_coefficient_;
+  inviscid.threshold = sensor_threshold_;
+  inviscid.limiter_dt = positivity_limiter_ ? limiter_dt_ : 0.0;
   BlockPrimitives<Dim> w{rho_.data(), {}, p_.data(), e_.data()};
   for (int a = 0; a < Dim; ++a) w.u[static_cast<std::size_t>(a)] = u_[static_cast<std::size_t>(a)].data();
   for (std::size_t s = 0; s < grid_->local_blocks(); ++s) {
@@ -739,36 +729,8 @@ int FluidModel<Dim>::evaluate_rhs(std::span<const double> y, std::span<double> y
     double* out = ydot.data() + s * kFields * per_block;
     std::fill(out, out + kFields * per_block, 0.0);
     const auto h = grid_->spacing(grid_->key(s).level);
-    if (shock_capturing_)
-      for (std::size_t at = 0; at < volume; ++at) sound_[at] = std::sqrt(std::abs(gamma_ * p_[at] / rho_[at]));
-    for (int a = 0; a < Dim; ++a) {
-      const auto au = static_cast<std::size_t>(a);
-      const std::ptrdiff_t stride = shape.stride(a);
-      FaceDissipation dissipation;
-      if (shock_capturing_) {
-        const double capture_start = clock.seconds();
-        const int extent = shape.extent[au];
-        double psi_max = 0;
-        for (std::size_t at = 0; at < volume; ++at) {
-          const int i = static_cast<int>((static_cast<std::ptrdiff_t>(at) / stride) % extent);
-          wave_[at] = std::abs(u_[au][at]) + sound_[at];
-          psi_[at] = (i == 0 || i == extent - 1)
-                         ? 0.0
-                         : std::max(second_difference_sensor(p_.data(), static_cast<std::ptrdiff_t>(at), stride),
-                                    second_difference_sensor(rho_.data(), static_cast<std::ptrdiff_t>(at), stride));
-          psi_max = std::max(psi_max, psi_[at]);
-        }
-        // Below the threshold everywhere in the block the dissipation is exactly zero: skip it.
-        if (psi_max > sensor_threshold_)
-          dissipation = {psi_.data(), wave_.data(), capturing_coefficient_, sensor_threshold_};
-        capturing_s += clock.seconds() - capture_start;
-      }
-      const double sigma = positivity_limiter_ ? 2 * Dim * limiter_dt_ / h[au] : 0.0;
-      const auto out_step = static_cast<std::size_t>(line_point_stride_[au]);
-      for (const auto& line : lines_[au])
-        limited_faces_ += add_line_divergence<Dim>(w, q, line.first, stride, config_.block_size, a, 1 / h[au], dissipation,
-                                                   sigma, gamma_, line_scratch_, out + line.point, per_block, out_step);
-    }
+    limited_faces_ += add_block_inviscid<Dim>(shape, grid_->layout().ghosts, config_.block_size, w, q, h, inviscid,
+                                              block_scratch_, out);
     const double mid = clock.seconds();
     convection_s += mid - start;
     if (viscous_) {
@@ -776,9 +738,7 @@ int FluidModel<Dim>::evaluate_rhs(std::span<const double> y, std::span<double> y
       viscous_s += clock.seconds() - mid;
     }
   }
-  convection_s -= capturing_s;  // the sensor's share, timed apart
   timers_.add("rhs: convection", convection_s);
-  if (shock_capturing_) timers_.add("rhs: capturing", capturing_s);
   if (viscous_) timers_.add("rhs: viscous", viscous_s);
   if (sponge_width_ > 0) {
     ScopedTimer timer(timers_, "rhs: sponge");
