@@ -265,7 +265,6 @@ class FluidModel : public io::System {
   std::vector<double> mu_;
   std::vector<double> kinetic_;  // |u|^2 / 2 at every array point (viscous work)
   std::array<std::vector<double>, Dim + 1> viscous_flux_;
-  std::vector<std::ptrdiff_t> viscous_points_;  // array points whose gradients the fluxes need
 
   // Penalization (ImmersedBodies.hpp, Penalization.hpp); all empty without [[body]] entries.
   struct MaskedPoint {
@@ -538,20 +537,11 @@ void FluidModel<Dim>::layout_changed() {
   for (auto* v : {&rho_, &p_, &e_, &wave_, &temperature_, &kinetic_}) v->assign(volume, 0.0);
   force_rhs_.assign(static_cast<std::size_t>(kFields) * grid_->points_per_block(), 0.0);
   for (auto& v : u_) v.assign(volume, 0.0);
-  viscous_points_.clear();
   if (viscous_) {
     for (auto& g : gradient_)
       for (auto& v : g) v.assign(volume, 0.0);
     mu_.assign(volume, 0.0);
     for (auto& v : viscous_flux_) v.assign(volume, 0.0);
-    // Points at least two layers inside the array: the gradient stencils stay in the array, and
-    // they cover interior +- 2 along every axis, what the flux divergence reads.
-    for (std::size_t at = 0; at < volume; ++at) {
-      const auto i = shape.coords(static_cast<std::ptrdiff_t>(at));
-      bool inside = true;
-      for (int a = 0; a < Dim; ++a) inside = inside && i[static_cast<std::size_t>(a)] >= 2 && i[static_cast<std::size_t>(a)] < shape.extent[static_cast<std::size_t>(a)] - 2;
-      if (inside) viscous_points_.push_back(static_cast<std::ptrdiff_t>(at));
-    }
   }
   interior_at_.clear();
   const int g = grid_->layout().ghosts, bs = config_.block_size;
@@ -727,7 +717,6 @@ int FluidModel<Dim>::evaluate_rhs(std::span<const double> y, std::span<double> y
     for (int f = 0; f < kFields; ++f) q[static_cast<std::size_t>(f)] = grid_->block(f, s).data();
     compute_primitives(s);
     double* out = ydot.data() + s * kFields * per_block;
-    std::fill(out, out + kFields * per_block, 0.0);
     const auto h = grid_->spacing(grid_->key(s).level);
     limited_faces_ += add_block_inviscid<Dim>(shape, grid_->layout().ghosts, config_.block_size, w, q, h, inviscid,
                                               block_scratch_, out);
@@ -1379,57 +1368,104 @@ void FluidModel<Dim>::add_sponge(std::size_t slot, double* out) {
 
 template <int Dim>
 void FluidModel<Dim>::add_viscous_terms(std::size_t slot, double* out) {
+  // Loops over x-contiguous rows (for_each_row) with every stencil at constant offsets: they
+  // vectorise whatever the derivative's axis. Field pointers are copied to locals so the
+  // vectoriser sees them invariant.
   const auto shape = grid_->layout().shape();
   const auto h = grid_->spacing(grid_->key(slot).level);
   const std::size_t per_block = interior_at_.size();
+  const int g = grid_->layout().ghosts, n = config_.block_size;
   const double inv_re = 1 / reynolds_, conduction = 1 / ((gamma_ - 1) * reynolds_ * prandtl_);
-  // T = gamma p / rho (c^2) into wave_ (free until the capturing stage overwrites it).
-  for (std::size_t at = 0; at < wave_.size(); ++at) wave_[at] = gamma_ * p_[at] / rho_[at];
-  for (const auto at : viscous_points_) {
-    const auto au = static_cast<std::size_t>(at);
-    for (int a = 0; a < Dim; ++a) {
-      const auto aa = static_cast<std::size_t>(a);
-      const double inv_h = 1 / h[aa];
-      const std::ptrdiff_t stride = shape.stride(a);
-      for (int i = 0; i < Dim; ++i)
-        gradient_[static_cast<std::size_t>(i)][aa][au] = central_derivative(u_[static_cast<std::size_t>(i)].data(), at, stride, inv_h);
-    }
-    mu_[au] = sutherland_viscosity(wave_[au], sutherland_s1_);
-    // |u|^2 / 2: the work of the Laplacian stresses is d_j(mu d_j |u|^2/2) (ViscousTerms.hpp);
-    // like mu, needed at the interior points +- 2, which these points cover.
-    double k = 0;
-    for (int i = 0; i < Dim; ++i) k += u_[static_cast<std::size_t>(i)][au] * u_[static_cast<std::size_t>(i)][au];
-    kinetic_[au] = 0.5 * k;
+  const double gamma = gamma_, s1 = sutherland_s1_;
+  std::array<const double*, Dim> u{};
+  std::array<std::array<double*, Dim>, Dim> grad_of{};  // grad_of[i][a] = d_a u_i
+  for (std::size_t i = 0; i < static_cast<std::size_t>(Dim); ++i) {
+    u[i] = u_[i].data();
+    for (std::size_t a = 0; a < static_cast<std::size_t>(Dim); ++a) grad_of[i][a] = gradient_[i][a].data();
   }
+  const double* rho = rho_.data();
+  const double* p = p_.data();
+  double* temperature = wave_.data();  // T = gamma p / rho (free until the capturing stage overwrites it)
+  double* mu = mu_.data();
+  double* kinetic = kinetic_.data();
+  std::array<double*, Dim + 1> flux{};
+  for (std::size_t f = 0; f <= static_cast<std::size_t>(Dim); ++f) flux[f] = viscous_flux_[f].data();
+  std::array<int, Dim> lo{}, hi{}, interior_lo{}, interior_hi{};
+  lo.fill(g - 2);
+  hi.fill(g + n + 2);
+  interior_lo.fill(g);
+  interior_hi.fill(g + n);
+  // Gradients, T, mu and |u|^2 / 2 at the interior points +- 2 (what the fluxes' derivatives and
+  // the narrow operator read). The |u|^2 / 2 carries the work of the Laplacian stresses,
+  // d_j(mu d_j |u|^2/2) (ViscousTerms.hpp).
+  for_each_row<Dim>(shape, lo, hi, [&](std::ptrdiff_t start, int length, const auto&) {
+#pragma GCC ivdep
+    for (int x = 0; x < length; ++x) {
+      const std::ptrdiff_t at = start + x;
+      const double T = gamma * p[at] / rho[at];
+      temperature[at] = T;
+      mu[at] = sutherland_viscosity(T, s1);
+      double k = 0;
+      for (std::size_t i = 0; i < static_cast<std::size_t>(Dim); ++i) k += u[i][at] * u[i][at];
+      kinetic[at] = 0.5 * k;
+    }
+    for (std::size_t a = 0; a < static_cast<std::size_t>(Dim); ++a) {
+      const double inv_h = 1 / h[a];
+      const std::ptrdiff_t stride = shape.stride(static_cast<int>(a));
+      for (std::size_t i = 0; i < static_cast<std::size_t>(Dim); ++i) {
+        const double* ui = u[i];
+        double* gi = grad_of[i][a];
+#pragma GCC ivdep
+        for (int x = 0; x < length; ++x) gi[start + x] = central_derivative(ui, start + x, stride, inv_h);
+      }
+    }
+  });
   for (int j = 0; j < Dim; ++j) {
     const auto ju = static_cast<std::size_t>(j);
-    for (const auto at : viscous_points_) {
-      const auto au = static_cast<std::size_t>(at);
-      double grad[Dim][Dim];
-      for (int i = 0; i < Dim; ++i)
-        for (int k = 0; k < Dim; ++k) grad[i][k] = gradient_[static_cast<std::size_t>(i)][static_cast<std::size_t>(k)][au];
-      double work = 0;
-      for (int i = 0; i < Dim; ++i) {
-        const double rest = inv_re * viscous_stress_rest<Dim>(grad, mu_[au], i, j);
-        viscous_flux_[static_cast<std::size_t>(i)][au] = rest;
-        work += u_[static_cast<std::size_t>(i)][au] * rest;
-      }
-      viscous_flux_[Dim][au] = work;
-    }
     const double inv_h = 1 / h[ju], inv_h2 = inv_h * inv_h;
     const std::ptrdiff_t stride = shape.stride(j);
-    for (std::size_t p = 0; p < per_block; ++p) {
-      const std::ptrdiff_t at = interior_at_[p];
-      for (int f = 0; f <= Dim; ++f)
-        out[static_cast<std::size_t>(f + 1) * per_block + p] +=
-            central_derivative(viscous_flux_[static_cast<std::size_t>(f)].data(), at, stride, inv_h);
-      for (int i = 0; i < Dim; ++i)
-        out[static_cast<std::size_t>(i + 1) * per_block + p] +=
-            inv_re * narrow_diffusion(mu_.data(), u_[static_cast<std::size_t>(i)].data(), at, stride, inv_h2);
-      out[static_cast<std::size_t>(Dim + 1) * per_block + p] +=
-          inv_re * narrow_diffusion(mu_.data(), kinetic_.data(), at, stride, inv_h2) +
-          conduction * narrow_diffusion(mu_.data(), wave_.data(), at, stride, inv_h2);
-    }
+    // The rest of tau_ij and its work u_i tau_ij at the interior points +- 2 along j.
+    auto flux_lo = interior_lo, flux_hi = interior_hi;
+    flux_lo[ju] = g - 2;
+    flux_hi[ju] = g + n + 2;
+    for_each_row<Dim>(shape, flux_lo, flux_hi, [&](std::ptrdiff_t start, int length, const auto&) {
+#pragma GCC ivdep
+      for (int x = 0; x < length; ++x) {
+        const std::ptrdiff_t at = start + x;
+        double grad[Dim][Dim];
+        for (std::size_t i = 0; i < static_cast<std::size_t>(Dim); ++i)
+          for (std::size_t k = 0; k < static_cast<std::size_t>(Dim); ++k) grad[i][k] = grad_of[i][k][at];
+        double work = 0;
+        for (int i = 0; i < Dim; ++i) {
+          const double rest = inv_re * viscous_stress_rest<Dim>(grad, mu[at], i, j);
+          flux[static_cast<std::size_t>(i)][at] = rest;
+          work += u[static_cast<std::size_t>(i)][at] * rest;
+        }
+        flux[Dim][at] = work;
+      }
+    });
+    for_each_row<Dim>(shape, interior_lo, interior_hi, [&](std::ptrdiff_t start, int length, const auto& first) {
+      std::size_t point = 0;
+      for (int b = Dim - 1; b >= 0; --b)
+        point = point * static_cast<std::size_t>(n) + static_cast<std::size_t>(first[static_cast<std::size_t>(b)] - g);
+      for (std::size_t f = 0; f <= static_cast<std::size_t>(Dim); ++f) {
+        double* o = out + (f + 1) * per_block + point;
+        const double* fl = flux[f];
+#pragma GCC ivdep
+        for (int x = 0; x < length; ++x) o[x] += central_derivative(fl, start + x, stride, inv_h);
+      }
+      for (std::size_t i = 0; i < static_cast<std::size_t>(Dim); ++i) {
+        double* o = out + (i + 1) * per_block + point;
+        const double* ui = u[i];
+#pragma GCC ivdep
+        for (int x = 0; x < length; ++x) o[x] += inv_re * narrow_diffusion(mu, ui, start + x, stride, inv_h2);
+      }
+      double* o = out + (Dim + 1) * per_block + point;
+#pragma GCC ivdep
+      for (int x = 0; x < length; ++x)
+        o[x] += inv_re * narrow_diffusion(mu, kinetic, start + x, stride, inv_h2) +
+                conduction * narrow_diffusion(mu, temperature, start + x, stride, inv_h2);
+    });
   }
 }
 
