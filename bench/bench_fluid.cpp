@@ -1,8 +1,9 @@
 // Throughput of the fluid right-hand side on one block (items = point-RHS evaluations per
 // second): primitives over the block with ghosts, then the flux-form split convection along every
-// axis (Euler), optionally with the shock sensor, dissipation and positivity check, in 1D, 2D and 3D. The viscous terms
-// live inside the solver; Navier-Stokes throughput is measured on whole runs instead (every fluid
-// summary.json reports point_rhs_per_s and rhs_evaluation_s; bench/adapt_cost.py prints them).
+// axis with the shock sensor, dissipation and positivity check (the solver's default), and for
+// Navier-Stokes the viscous and heat-conduction terms, in 1D, 2D and 3D. Arguments: block size,
+// sensor and positivity check on (1) or off (0). Whole runs, with ghosts, adaptation and time
+// stepping, report point_rhs_per_s in summary.json (bench/adapt_cost.py prints it).
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -10,18 +11,20 @@
 #include <cmath>
 #include <vector>
 
+#include "fluid/BlockKernels.hpp"
 #include "fluid/IdealGas.hpp"
 #include "fluid/SplitConvection.hpp"
+#include "fluid/ViscousTerms.hpp"
 #include "wavelet/ArrayShape.hpp"
 
 namespace gf = grainwave::fluid;
 
 namespace {
 
-template <int Dim>
-void BM_EulerRhsBlock(benchmark::State& state) {
+template <int Dim, bool kViscous>
+void fluid_rhs_block(benchmark::State& state) {
   constexpr int kFields = Dim + 2;
-  const int bs = static_cast<int>(state.range(0)), g = gf::kStencilReach;
+  const int bs = static_cast<int>(state.range(0)), g = kViscous ? gf::kViscousReach : gf::kStencilReach;
   const bool capturing = state.range(1) != 0;
   grainwave::wavelet::ArrayShape<Dim> shape;
   shape.extent.fill(bs + 2 * g);
@@ -53,17 +56,48 @@ void BM_EulerRhsBlock(benchmark::State& state) {
   settings.capturing = capturing;
   settings.coefficient = 1.2;
   settings.threshold = 1e-3;
-  // A CFL-0.4 step's positivity check on every point (it changes nothing here).
-  settings.limiter_dt = capturing ? 0.4 * 0.01 / 2 : 0.0;
+  settings.limiter_dt = capturing ? 0.4 * 0.01 / 2 : 0.0;  // a CFL-0.4 step's check (it limits nothing here)
   std::array<double, Dim> h{};
   h.fill(0.01);
+  // Viscous scratch, as the solver holds it.
+  std::array<std::array<std::vector<double>, Dim>, Dim> gradient;
+  std::vector<double> temperature(volume), mu(volume), kinetic(volume);
+  std::array<std::vector<double>, Dim + 1> flux;
+  gf::ViscousBlock<Dim> block;
+  for (std::size_t i = 0; i < static_cast<std::size_t>(Dim); ++i) {
+    block.u[i] = u[i].data();
+    for (std::size_t a = 0; a < static_cast<std::size_t>(Dim); ++a) {
+      gradient[i][a].resize(volume);
+      block.gradient[i][a] = gradient[i][a].data();
+    }
+  }
+  for (std::size_t f = 0; f <= static_cast<std::size_t>(Dim); ++f) {
+    flux[f].resize(volume);
+    block.flux[f] = flux[f].data();
+  }
+  block.rho = rho.data();
+  block.p = p.data();
+  block.temperature = temperature.data();
+  block.mu = mu.data();
+  block.kinetic = kinetic.data();
+  const gf::ViscousSettings viscous{1.4, 1000.0, 0.72, 110.4 / 300.0};
   for (auto _ : state) {
     gf::block_primitives<Dim>(qp, volume, 1.4, rho.data(), u_out, e.data(), p.data());
-    gf::add_block_inviscid<Dim>(shape, g, bs, w, qp, h, settings, scratch, out.data());
+    gf::block_inviscid<Dim>(shape, g, bs, w, qp, h, settings, scratch, out.data());
+    if constexpr (kViscous) gf::block_viscous<Dim>(shape, g, bs, h, viscous, block, out.data());
     benchmark::DoNotOptimize(out.data());
     benchmark::ClobberMemory();
   }
   state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(points));
+}
+
+template <int Dim>
+void BM_EulerRhsBlock(benchmark::State& state) {
+  fluid_rhs_block<Dim, false>(state);
+}
+template <int Dim>
+void BM_NavierStokesRhsBlock(benchmark::State& state) {
+  fluid_rhs_block<Dim, true>(state);
 }
 
 }  // namespace
@@ -71,4 +105,7 @@ void BM_EulerRhsBlock(benchmark::State& state) {
 BENCHMARK_TEMPLATE(BM_EulerRhsBlock, 1)->Args({16, 0})->Args({16, 1});
 BENCHMARK_TEMPLATE(BM_EulerRhsBlock, 2)->Args({16, 0})->Args({16, 1});
 BENCHMARK_TEMPLATE(BM_EulerRhsBlock, 3)->Args({16, 0})->Args({16, 1});
+BENCHMARK_TEMPLATE(BM_NavierStokesRhsBlock, 1)->Args({16, 1});
+BENCHMARK_TEMPLATE(BM_NavierStokesRhsBlock, 2)->Args({16, 1});
+BENCHMARK_TEMPLATE(BM_NavierStokesRhsBlock, 3)->Args({16, 1});
 BENCHMARK_MAIN();

@@ -11,6 +11,7 @@
 
 #include "core/Error.hpp"
 #include "core/Mpi.hpp"
+#include "fluid/BlockKernels.hpp"
 #include "fluid/TimeIntegrator.hpp"
 #include "fluid/ExactSolutions.hpp"
 #include "fluid/FluidBoundaries.hpp"
@@ -718,7 +719,7 @@ int FluidModel<Dim>::evaluate_rhs(std::span<const double> y, std::span<double> y
     compute_primitives(s);
     double* out = ydot.data() + s * kFields * per_block;
     const auto h = grid_->spacing(grid_->key(s).level);
-    limited_faces_ += add_block_inviscid<Dim>(shape, grid_->layout().ghosts, config_.block_size, w, q, h, inviscid,
+    limited_faces_ += block_inviscid<Dim>(shape, grid_->layout().ghosts, config_.block_size, w, q, h, inviscid,
                                               block_scratch_, out);
     const double mid = clock.seconds();
     convection_s += mid - start;
@@ -1368,105 +1369,20 @@ void FluidModel<Dim>::add_sponge(std::size_t slot, double* out) {
 
 template <int Dim>
 void FluidModel<Dim>::add_viscous_terms(std::size_t slot, double* out) {
-  // Loops over x-contiguous rows (for_each_row) with every stencil at constant offsets: they
-  // vectorise whatever the derivative's axis. Field pointers are copied to locals so the
-  // vectoriser sees them invariant.
-  const auto shape = grid_->layout().shape();
-  const auto h = grid_->spacing(grid_->key(slot).level);
-  const std::size_t per_block = interior_at_.size();
-  const int g = grid_->layout().ghosts, n = config_.block_size;
-  const double inv_re = 1 / reynolds_, conduction = 1 / ((gamma_ - 1) * reynolds_ * prandtl_);
-  const double gamma = gamma_, s1 = sutherland_s1_;
-  std::array<const double*, Dim> u{};
-  std::array<std::array<double*, Dim>, Dim> grad_of{};  // grad_of[i][a] = d_a u_i
+  ViscousBlock<Dim> block;
   for (std::size_t i = 0; i < static_cast<std::size_t>(Dim); ++i) {
-    u[i] = u_[i].data();
-    for (std::size_t a = 0; a < static_cast<std::size_t>(Dim); ++a) grad_of[i][a] = gradient_[i][a].data();
+    block.u[i] = u_[i].data();
+    for (std::size_t a = 0; a < static_cast<std::size_t>(Dim); ++a) block.gradient[i][a] = gradient_[i][a].data();
   }
-  const double* rho = rho_.data();
-  const double* p = p_.data();
-  double* temperature = wave_.data();  // T = gamma p / rho (free until the capturing stage overwrites it)
-  double* mu = mu_.data();
-  double* kinetic = kinetic_.data();
-  std::array<double*, Dim + 1> flux{};
-  for (std::size_t f = 0; f <= static_cast<std::size_t>(Dim); ++f) flux[f] = viscous_flux_[f].data();
-  std::array<int, Dim> lo{}, hi{}, interior_lo{}, interior_hi{};
-  lo.fill(g - 2);
-  hi.fill(g + n + 2);
-  interior_lo.fill(g);
-  interior_hi.fill(g + n);
-  // Gradients, T, mu and |u|^2 / 2 at the interior points +- 2 (what the fluxes' derivatives and
-  // the narrow operator read). The |u|^2 / 2 carries the work of the Laplacian stresses,
-  // d_j(mu d_j |u|^2/2) (ViscousTerms.hpp).
-  for_each_row<Dim>(shape, lo, hi, [&](std::ptrdiff_t start, int length, const auto&) {
-#pragma GCC ivdep
-    for (int x = 0; x < length; ++x) {
-      const std::ptrdiff_t at = start + x;
-      const double T = gamma * p[at] / rho[at];
-      temperature[at] = T;
-      mu[at] = sutherland_viscosity(T, s1);
-      double k = 0;
-      for (std::size_t i = 0; i < static_cast<std::size_t>(Dim); ++i) k += u[i][at] * u[i][at];
-      kinetic[at] = 0.5 * k;
-    }
-    for (std::size_t a = 0; a < static_cast<std::size_t>(Dim); ++a) {
-      const double inv_h = 1 / h[a];
-      const std::ptrdiff_t stride = shape.stride(static_cast<int>(a));
-      for (std::size_t i = 0; i < static_cast<std::size_t>(Dim); ++i) {
-        const double* ui = u[i];
-        double* gi = grad_of[i][a];
-#pragma GCC ivdep
-        for (int x = 0; x < length; ++x) gi[start + x] = central_derivative(ui, start + x, stride, inv_h);
-      }
-    }
-  });
-  for (int j = 0; j < Dim; ++j) {
-    const auto ju = static_cast<std::size_t>(j);
-    const double inv_h = 1 / h[ju], inv_h2 = inv_h * inv_h;
-    const std::ptrdiff_t stride = shape.stride(j);
-    // The rest of tau_ij and its work u_i tau_ij at the interior points +- 2 along j.
-    auto flux_lo = interior_lo, flux_hi = interior_hi;
-    flux_lo[ju] = g - 2;
-    flux_hi[ju] = g + n + 2;
-    for_each_row<Dim>(shape, flux_lo, flux_hi, [&](std::ptrdiff_t start, int length, const auto&) {
-#pragma GCC ivdep
-      for (int x = 0; x < length; ++x) {
-        const std::ptrdiff_t at = start + x;
-        double grad[Dim][Dim];
-        for (std::size_t i = 0; i < static_cast<std::size_t>(Dim); ++i)
-          for (std::size_t k = 0; k < static_cast<std::size_t>(Dim); ++k) grad[i][k] = grad_of[i][k][at];
-        double work = 0;
-        for (int i = 0; i < Dim; ++i) {
-          const double rest = inv_re * viscous_stress_rest<Dim>(grad, mu[at], i, j);
-          flux[static_cast<std::size_t>(i)][at] = rest;
-          work += u[static_cast<std::size_t>(i)][at] * rest;
-        }
-        flux[Dim][at] = work;
-      }
-    });
-    for_each_row<Dim>(shape, interior_lo, interior_hi, [&](std::ptrdiff_t start, int length, const auto& first) {
-      std::size_t point = 0;
-      for (int b = Dim - 1; b >= 0; --b)
-        point = point * static_cast<std::size_t>(n) + static_cast<std::size_t>(first[static_cast<std::size_t>(b)] - g);
-      for (std::size_t f = 0; f <= static_cast<std::size_t>(Dim); ++f) {
-        double* o = out + (f + 1) * per_block + point;
-        const double* fl = flux[f];
-#pragma GCC ivdep
-        for (int x = 0; x < length; ++x) o[x] += central_derivative(fl, start + x, stride, inv_h);
-      }
-      for (std::size_t i = 0; i < static_cast<std::size_t>(Dim); ++i) {
-        double* o = out + (i + 1) * per_block + point;
-        const double* ui = u[i];
-#pragma GCC ivdep
-        for (int x = 0; x < length; ++x) o[x] += inv_re * narrow_diffusion(mu, ui, start + x, stride, inv_h2);
-      }
-      double* o = out + (Dim + 1) * per_block + point;
-#pragma GCC ivdep
-      for (int x = 0; x < length; ++x)
-        o[x] += inv_re * narrow_diffusion(mu, kinetic, start + x, stride, inv_h2) +
-                conduction * narrow_diffusion(mu, temperature, start + x, stride, inv_h2);
-    });
-  }
+  block.rho = rho_.data();
+  block.p = p_.data();
+  block.temperature = wave_.data();  // free until the capturing stage overwrites it
+  block.mu = mu_.data();
+  block.kinetic = kinetic_.data();
+  for (std::size_t f = 0; f <= static_cast<std::size_t>(Dim); ++f) block.flux[f] = viscous_flux_[f].data();
+  const ViscousSettings settings{gamma_, reynolds_, prandtl_, sutherland_s1_};
+  block_viscous<Dim>(grid_->layout().shape(), grid_->layout().ghosts, config_.block_size,
+                         grid_->spacing(grid_->key(slot).level), settings, block, out);
 }
 
 template <int Dim>

@@ -17,6 +17,7 @@
 // to zero because its matrix is symmetric). The nested derivatives reach 4 points from each
 // interior point (kViscousReach ghost layers).
 // Only built when a scene sets a Reynolds number: inviscid scenes never call these.
+#include <array>
 #include <cstddef>
 
 #include "fluid/SplitConvection.hpp"
@@ -56,6 +57,125 @@ inline double viscous_stress_rest(const double (&grad)[Dim][Dim], double mu, int
 template <int Dim>
 inline double viscous_stress(const double (&grad)[Dim][Dim], double mu, int i, int j) {
   return mu * grad[i][j] + viscous_stress_rest<Dim>(grad, mu, i, j);
+}
+
+/// The fields add_block_viscous reads and its scratch, arrays of one block with ghosts.
+template <int Dim>
+struct ViscousBlock {
+  std::array<const double*, Dim> u{};
+  const double* rho = nullptr;
+  const double* p = nullptr;
+  std::array<std::array<double*, Dim>, Dim> gradient{};  ///< out: gradient[i][a] = d_a u_i
+  double* temperature = nullptr;                          ///< out: T = gamma p / rho
+  double* mu = nullptr;                                   ///< out: Sutherland viscosity
+  double* kinetic = nullptr;                              ///< scratch: |u|^2 / 2
+  std::array<double*, Dim + 1> flux{};                    ///< scratch: stress rest and its work
+};
+
+struct ViscousSettings {
+  double gamma = 1.4, reynolds = 1, prandtl = 0.72, sutherland_s1 = 110.4 / 300.0;
+};
+
+/// Adds the viscous and heat-conduction terms of one block (its n^Dim interior points from array
+/// coordinate g on, g >= kViscousReach) to out (out[f * n^Dim + p], p the interior point number,
+/// x fastest; the density row is not touched). Also leaves the velocity gradients, T and mu at
+/// the interior points +- 2 in `block` (the force integrals read them). Loops over x-contiguous
+/// rows (for_each_row) with every stencil at constant offsets: they vectorise whatever the
+/// derivative's axis.
+template <int Dim>
+inline void add_block_viscous(const wavelet::ArrayShape<Dim>& shape, int g, int n, const std::array<double, Dim>& h,
+                              const ViscousSettings& settings, const ViscousBlock<Dim>& block, double* out) {
+  std::size_t per_block = 1;
+  for (int a = 0; a < Dim; ++a) per_block *= static_cast<std::size_t>(n);
+  const double inv_re = 1 / settings.reynolds;
+  const double conduction = 1 / ((settings.gamma - 1) * settings.reynolds * settings.prandtl);
+  const double gamma = settings.gamma, s1 = settings.sutherland_s1;
+  // Local copies of the pointers: the vectoriser must see them invariant.
+  const auto u = block.u;
+  const auto grad_of = block.gradient;
+  const auto flux = block.flux;
+  const double* rho = block.rho;
+  const double* p = block.p;
+  double* temperature = block.temperature;
+  double* mu = block.mu;
+  double* kinetic = block.kinetic;
+  std::array<int, Dim> lo{}, hi{}, interior_lo{}, interior_hi{};
+  lo.fill(g - 2);
+  hi.fill(g + n + 2);
+  interior_lo.fill(g);
+  interior_hi.fill(g + n);
+  // Gradients, T, mu and |u|^2 / 2 at the interior points +- 2 (what the fluxes' derivatives and
+  // the narrow operator read). The |u|^2 / 2 carries the work of the Laplacian stresses,
+  // d_j(mu d_j |u|^2/2) (ViscousTerms.hpp).
+  for_each_row<Dim>(shape, lo, hi, [&](std::ptrdiff_t start, int length, const auto&) {
+#pragma GCC ivdep
+    for (int x = 0; x < length; ++x) {
+      const std::ptrdiff_t at = start + x;
+      const double T = gamma * p[at] / rho[at];
+      temperature[at] = T;
+      mu[at] = sutherland_viscosity(T, s1);
+      double k = 0;
+      for (std::size_t i = 0; i < static_cast<std::size_t>(Dim); ++i) k += u[i][at] * u[i][at];
+      kinetic[at] = 0.5 * k;
+    }
+    for (std::size_t a = 0; a < static_cast<std::size_t>(Dim); ++a) {
+      const double inv_h = 1 / h[a];
+      const std::ptrdiff_t stride = shape.stride(static_cast<int>(a));
+      for (std::size_t i = 0; i < static_cast<std::size_t>(Dim); ++i) {
+        const double* ui = u[i];
+        double* gi = grad_of[i][a];
+#pragma GCC ivdep
+        for (int x = 0; x < length; ++x) gi[start + x] = central_derivative(ui, start + x, stride, inv_h);
+      }
+    }
+  });
+  for (int j = 0; j < Dim; ++j) {
+    const auto ju = static_cast<std::size_t>(j);
+    const double inv_h = 1 / h[ju], inv_h2 = inv_h * inv_h;
+    const std::ptrdiff_t stride = shape.stride(j);
+    // The rest of tau_ij and its work u_i tau_ij at the interior points +- 2 along j.
+    auto flux_lo = interior_lo, flux_hi = interior_hi;
+    flux_lo[ju] = g - 2;
+    flux_hi[ju] = g + n + 2;
+    for_each_row<Dim>(shape, flux_lo, flux_hi, [&](std::ptrdiff_t start, int length, const auto&) {
+#pragma GCC ivdep
+      for (int x = 0; x < length; ++x) {
+        const std::ptrdiff_t at = start + x;
+        double grad[Dim][Dim];
+        for (std::size_t i = 0; i < static_cast<std::size_t>(Dim); ++i)
+          for (std::size_t k = 0; k < static_cast<std::size_t>(Dim); ++k) grad[i][k] = grad_of[i][k][at];
+        double work = 0;
+        for (int i = 0; i < Dim; ++i) {
+          const double rest = inv_re * viscous_stress_rest<Dim>(grad, mu[at], i, j);
+          flux[static_cast<std::size_t>(i)][at] = rest;
+          work += u[static_cast<std::size_t>(i)][at] * rest;
+        }
+        flux[Dim][at] = work;
+      }
+    });
+    for_each_row<Dim>(shape, interior_lo, interior_hi, [&](std::ptrdiff_t start, int length, const auto& first) {
+      std::size_t point = 0;
+      for (int b = Dim - 1; b >= 0; --b)
+        point = point * static_cast<std::size_t>(n) + static_cast<std::size_t>(first[static_cast<std::size_t>(b)] - g);
+      for (std::size_t f = 0; f <= static_cast<std::size_t>(Dim); ++f) {
+        double* o = out + (f + 1) * per_block + point;
+        const double* fl = flux[f];
+#pragma GCC ivdep
+        for (int x = 0; x < length; ++x) o[x] += central_derivative(fl, start + x, stride, inv_h);
+      }
+      for (std::size_t i = 0; i < static_cast<std::size_t>(Dim); ++i) {
+        double* o = out + (i + 1) * per_block + point;
+        const double* ui = u[i];
+#pragma GCC ivdep
+        for (int x = 0; x < length; ++x) o[x] += inv_re * narrow_diffusion(mu, ui, start + x, stride, inv_h2);
+      }
+      double* o = out + (Dim + 1) * per_block + point;
+#pragma GCC ivdep
+      for (int x = 0; x < length; ++x)
+        o[x] += inv_re * narrow_diffusion(mu, kinetic, start + x, stride, inv_h2) +
+                conduction * narrow_diffusion(mu, temperature, start + x, stride, inv_h2);
+    });
+  }
 }
 
 }  // namespace grainwave::fluid

@@ -1,0 +1,47 @@
+#include "fluid/BlockKernels.hpp"
+
+// Each kernel is cloned for AVX2 and the baseline; `flatten` inlines the templates into each
+// clone, so each is compiled for its instruction set as a whole.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__SANITIZE_ADDRESS__)
+#define GRAINWAVE_KERNEL_CLONES __attribute__((target_clones("avx2", "default"), flatten))
+#else
+#define GRAINWAVE_KERNEL_CLONES
+#endif
+
+namespace grainwave::fluid {
+
+GRAINWAVE_KERNEL_CLONES long block_inviscid_1d(const wavelet::ArrayShape<1>& shape, int g, int n,
+                                               const BlockPrimitives<1>& w, const std::array<const double*, 3>& q,
+                                               const std::array<double, 1>& h, const InviscidSettings& settings,
+                                               BlockScratch<1>& scratch, double* out) {
+  return add_block_inviscid<1>(shape, g, n, w, q, h, settings, scratch, out);
+}
+GRAINWAVE_KERNEL_CLONES long block_inviscid_2d(const wavelet::ArrayShape<2>& shape, int g, int n,
+                                               const BlockPrimitives<2>& w, const std::array<const double*, 4>& q,
+                                               const std::array<double, 2>& h, const InviscidSettings& settings,
+                                               BlockScratch<2>& scratch, double* out) {
+  return add_block_inviscid<2>(shape, g, n, w, q, h, settings, scratch, out);
+}
+GRAINWAVE_KERNEL_CLONES long block_inviscid_3d(const wavelet::ArrayShape<3>& shape, int g, int n,
+                                               const BlockPrimitives<3>& w, const std::array<const double*, 5>& q,
+                                               const std::array<double, 3>& h, const InviscidSettings& settings,
+                                               BlockScratch<3>& scratch, double* out) {
+  return add_block_inviscid<3>(shape, g, n, w, q, h, settings, scratch, out);
+}
+GRAINWAVE_KERNEL_CLONES void block_viscous_1d(const wavelet::ArrayShape<1>& shape, int g, int n,
+                                              const std::array<double, 1>& h, const ViscousSettings& settings,
+                                              const ViscousBlock<1>& block, double* out) {
+  add_block_viscous<1>(shape, g, n, h, settings, block, out);
+}
+GRAINWAVE_KERNEL_CLONES void block_viscous_2d(const wavelet::ArrayShape<2>& shape, int g, int n,
+                                              const std::array<double, 2>& h, const ViscousSettings& settings,
+                                              const ViscousBlock<2>& block, double* out) {
+  add_block_viscous<2>(shape, g, n, h, settings, block, out);
+}
+GRAINWAVE_KERNEL_CLONES void block_viscous_3d(const wavelet::ArrayShape<3>& shape, int g, int n,
+                                              const std::array<double, 3>& h, const ViscousSettings& settings,
+                                              const ViscousBlock<3>& block, double* out) {
+  add_block_viscous<3>(shape, g, n, h, settings, block, out);
+}
+
+}  // namespace grainwave::fluid
