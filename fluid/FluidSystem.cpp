@@ -297,6 +297,10 @@ class FluidModel : public io::System {
   /// integrator's vector), and the exact solve of (I - gamma df_I/dq) z = r, point by point.
   int brinkman_rhs(std::span<const double> y, std::span<double> ydot) const;
   int brinkman_solve(std::span<const double> y, std::span<const double> r, std::span<double> z, double gamma) const;
+  /// Calls visit(masked point, at) for each masked point with chi > 0, at(f) its index of field f
+  /// in the integrator's vector.
+  template <class Visit>
+  void for_each_relaxed_point(Visit&& visit) const;
   void compute_primitives(std::size_t slot);
   void add_penalization(std::size_t slot, double* out);
   /// Relaxes the state towards the face's reference state in layers along non-periodic edges.
@@ -885,6 +889,17 @@ void FluidModel<Dim>::relax_brinkman(double tau) {
     }
 }
 
+template <int Dim>
+template <class Visit>
+void FluidModel<Dim>::for_each_relaxed_point(Visit&& visit) const {
+  const std::size_t per_block = interior_at_.size();
+  for (std::size_t s = 0; s < masked_.size(); ++s)
+    for (const auto& m : masked_[s]) {
+      if (m.chi == 0) continue;
+      visit(m, [&](int f) { return (s * kFields + static_cast<std::size_t>(f)) * per_block + m.point; });
+    }
+}
+
 // The relaxation terms of 002 Eq. 2.28 at fixed density, in conserved variables (k = chi / eta_b):
 //     f_(rho u) = -k (rho u - rho u0),
 //     f_E       = u . f_(rho u) - k (E_int - rho c_v T_w) [isothermal],   E_int = E - |rho u|^2 / (2 rho),
@@ -892,25 +907,21 @@ void FluidModel<Dim>::relax_brinkman(double tau) {
 template <int Dim>
 int FluidModel<Dim>::brinkman_rhs(std::span<const double> y, std::span<double> ydot) const {
   std::fill(ydot.begin(), ydot.end(), 0.0);
-  const std::size_t per_block = interior_at_.size();
   const double cv = 1 / (gamma_ * (gamma_ - 1));
-  for (std::size_t s = 0; s < masked_.size(); ++s)
-    for (const auto& m : masked_[s]) {
-      if (m.chi == 0) continue;
-      auto at = [&](int f) { return (s * kFields + static_cast<std::size_t>(f)) * per_block + m.point; };
-      const Body& body = penalization_.bodies[static_cast<std::size_t>(m.body)];
-      const double k = m.chi / eta_b_, rho = y[at(0)];
-      double work = 0, kinetic = 0;
-      for (int a = 0; a < Dim; ++a) {
-        const double momentum = y[at(a + 1)], rate = -k * (momentum - rho * m.u0[static_cast<std::size_t>(a)]);
-        ydot[at(a + 1)] = rate;
-        work += momentum / rho * rate;
-        kinetic += 0.5 * momentum * momentum / rho;
-      }
-      double heat = 0;
-      if (body.thermal == WallThermal::kIsothermal) heat = -k * (y[at(Dim + 1)] - kinetic - rho * cv * body.wall_temperature);
-      ydot[at(Dim + 1)] = work + heat;
+  for_each_relaxed_point([&](const MaskedPoint& m, auto&& at) {
+    const Body& body = penalization_.bodies[static_cast<std::size_t>(m.body)];
+    const double k = m.chi / eta_b_, rho = y[at(0)];
+    double work = 0, kinetic = 0;
+    for (int a = 0; a < Dim; ++a) {
+      const double momentum = y[at(a + 1)], rate = -k * (momentum - rho * m.u0[static_cast<std::size_t>(a)]);
+      ydot[at(a + 1)] = rate;
+      work += momentum / rho * rate;
+      kinetic += 0.5 * momentum * momentum / rho;
     }
+    double heat = 0;
+    if (body.thermal == WallThermal::kIsothermal) heat = -k * (y[at(Dim + 1)] - kinetic - rho * cv * body.wall_temperature);
+    ydot[at(Dim + 1)] = work + heat;
+  });
   return 0;
 }
 
@@ -923,25 +934,21 @@ template <int Dim>
 int FluidModel<Dim>::brinkman_solve(std::span<const double> y, std::span<const double> r, std::span<double> z,
                                     double gamma) const {
   std::copy(r.begin(), r.end(), z.begin());
-  const std::size_t per_block = interior_at_.size();
   const double cv = 1 / (gamma_ * (gamma_ - 1));
-  for (std::size_t s = 0; s < masked_.size(); ++s)
-    for (const auto& m : masked_[s]) {
-      if (m.chi == 0) continue;
-      auto at = [&](int f) { return (s * kFields + static_cast<std::size_t>(f)) * per_block + m.point; };
-      const bool isothermal = penalization_.bodies[static_cast<std::size_t>(m.body)].thermal == WallThermal::kIsothermal;
-      const double k = m.chi / eta_b_, gk = gamma * k, rho = y[at(0)], z_rho = r[at(0)];
-      double coupling = 0, u2 = 0;  // gamma (d f_E / d(rho u) . z_(rho u) + d f_E / d rho z_rho)
-      for (int a = 0; a < Dim; ++a) {
-        const double u0 = m.u0[static_cast<std::size_t>(a)], u = y[at(a + 1)] / rho;
-        const double z_m = (r[at(a + 1)] + gk * u0 * z_rho) / (1 + gk);
-        z[at(a + 1)] = z_m;
-        coupling += gk * ((isothermal ? -u : -2 * u) + u0) * z_m;
-        u2 += u * u;
-      }
-      coupling += gk * (isothermal ? u2 - (0.5 * u2 - cv * penalization_.bodies[static_cast<std::size_t>(m.body)].wall_temperature) : u2) * z_rho;
-      z[at(Dim + 1)] = (r[at(Dim + 1)] + coupling) / (isothermal ? 1 + gk : 1.0);
+  for_each_relaxed_point([&](const MaskedPoint& m, auto&& at) {
+    const bool isothermal = penalization_.bodies[static_cast<std::size_t>(m.body)].thermal == WallThermal::kIsothermal;
+    const double k = m.chi / eta_b_, gk = gamma * k, rho = y[at(0)], z_rho = r[at(0)];
+    double coupling = 0, u2 = 0;  // gamma (d f_E / d(rho u) . z_(rho u) + d f_E / d rho z_rho)
+    for (int a = 0; a < Dim; ++a) {
+      const double u0 = m.u0[static_cast<std::size_t>(a)], u = y[at(a + 1)] / rho;
+      const double z_m = (r[at(a + 1)] + gk * u0 * z_rho) / (1 + gk);
+      z[at(a + 1)] = z_m;
+      coupling += gk * ((isothermal ? -u : -2 * u) + u0) * z_m;
+      u2 += u * u;
     }
+    coupling += gk * (isothermal ? u2 - (0.5 * u2 - cv * penalization_.bodies[static_cast<std::size_t>(m.body)].wall_temperature) : u2) * z_rho;
+    z[at(Dim + 1)] = (r[at(Dim + 1)] + coupling) / (isothermal ? 1 + gk : 1.0);
+  });
   return 0;
 }
 
