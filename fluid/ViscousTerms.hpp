@@ -137,18 +137,24 @@ inline void add_block_viscous(const wavelet::ArrayShape<Dim>& shape, int g, int 
     auto flux_lo = interior_lo, flux_hi = interior_hi;
     flux_lo[ju] = g - 2;
     flux_hi[ju] = g + n + 2;
+    // mu (d_i u_j - 2/3 div u delta_ij) (viscous_stress_rest), from d_i u_j and the diagonal only.
+    std::array<const double*, Dim> d_uj{}, diagonal{};
+    for (std::size_t i = 0; i < static_cast<std::size_t>(Dim); ++i) {
+      d_uj[i] = grad_of[ju][i];
+      diagonal[i] = grad_of[i][i];
+    }
     for_each_row<Dim>(shape, flux_lo, flux_hi, [&](std::ptrdiff_t start, int length, const auto&) {
 #pragma GCC ivdep
       for (int x = 0; x < length; ++x) {
         const std::ptrdiff_t at = start + x;
-        double grad[Dim][Dim];
-        for (std::size_t i = 0; i < static_cast<std::size_t>(Dim); ++i)
-          for (std::size_t k = 0; k < static_cast<std::size_t>(Dim); ++k) grad[i][k] = grad_of[i][k][at];
+        double divergence = 0;
+        for (std::size_t k = 0; k < static_cast<std::size_t>(Dim); ++k) divergence += diagonal[k][at];
+        const double scale = inv_re * mu[at];
         double work = 0;
-        for (int i = 0; i < Dim; ++i) {
-          const double rest = inv_re * viscous_stress_rest<Dim>(grad, mu[at], i, j);
-          flux[static_cast<std::size_t>(i)][at] = rest;
-          work += u[static_cast<std::size_t>(i)][at] * rest;
+        for (std::size_t i = 0; i < static_cast<std::size_t>(Dim); ++i) {
+          const double rest = scale * (d_uj[i][at] - (i == ju ? 2.0 / 3.0 * divergence : 0.0));
+          flux[i][at] = rest;
+          work += u[i][at] * rest;
         }
         flux[Dim][at] = work;
       }
