@@ -103,9 +103,9 @@ void BM_NavierStokesRhsBlock(benchmark::State& state) {
 }  // namespace
 
 BENCHMARK_TEMPLATE(BM_EulerRhsBlock, 1)->Args({16, 0})->Args({16, 1});
-BENCHMARK_TEMPLATE(BM_EulerRhsBlock, 2)->Args({16, 0})->Args({16, 1});
+BENCHMARK_TEMPLATE(BM_EulerRhsBlock, 2)->Args({16, 0})->Args({16, 1})->Args({32, 1});
 BENCHMARK_TEMPLATE(BM_EulerRhsBlock, 3)->Args({16, 0})->Args({16, 1});
 BENCHMARK_TEMPLATE(BM_NavierStokesRhsBlock, 1)->Args({16, 1});
-BENCHMARK_TEMPLATE(BM_NavierStokesRhsBlock, 2)->Args({16, 1});
+BENCHMARK_TEMPLATE(BM_NavierStokesRhsBlock, 2)->Args({16, 1})->Args({32, 1});
 BENCHMARK_TEMPLATE(BM_NavierStokesRhsBlock, 3)->Args({16, 1});
 BENCHMARK_MAIN();

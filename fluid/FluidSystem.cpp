@@ -207,7 +207,12 @@ class FluidModel : public io::System {
   std::string progress_note() const override { return fmt::format("blocks {}", grid_->global_blocks()); }
 
  private:
-  int evaluate_rhs(std::span<const double> y, std::span<double> ydot);
+  /// Which terms evaluate_rhs computes: all, all but the viscous ones (imex's explicit part when
+  /// those are implicit), or the viscous ones alone (weighted by 1 - chi inside bodies).
+  enum class RhsTerms { kAll, kExplicitPart, kViscousOnly };
+  int evaluate_rhs(std::span<const double> y, std::span<double> ydot, RhsTerms terms = RhsTerms::kAll);
+  /// IMEX's implicit part: the Brinkman relaxation, plus the viscous terms if they are implicit.
+  int implicit_rhs(std::span<const double> y, std::span<double> ydot);
   /// Adds the viscous and heat-conduction terms of block `slot` (primitives already computed).
   void add_viscous_terms(std::size_t slot, double* out);
   /// Metrics adapt_cycle_s, ghost_fill_s, rhs_evaluation_s and adapt_ghost_over_rhs.
@@ -251,6 +256,8 @@ class FluidModel : public io::System {
   std::unique_ptr<AdaptiveGrid<Dim>> grid_, good_;
   std::unique_ptr<TimeIntegrator> integrator_;
   bool imex_ = false;  ///< the Brinkman relaxation in the integrator's implicit part (else Strang-split)
+  bool viscous_implicit_ = false;  ///< imex: the viscous terms in the implicit part too
+  std::vector<double> implicit_scratch_;  ///< the relaxation rates, added to the implicit viscous ones
   RunStats stats_, good_stats_;
 
   // Per-block scratch (one block with ghosts), sized once: no allocation inside the RHS.
@@ -472,13 +479,20 @@ FluidModel<Dim>::FluidModel(const Scene& scene) {
       : scheme == "imex"   ? TimeScheme::kImex
                            : TimeScheme::kErrorControlled,
       s.real("rtol"), s.real("atol"),
-      [this](double, std::span<const double> y, std::span<double> ydot) { return evaluate_rhs(y, ydot); },
+      [this](double, std::span<const double> y, std::span<double> ydot) {
+        return evaluate_rhs(y, ydot, viscous_implicit_ ? RhsTerms::kExplicitPart : RhsTerms::kAll);
+      },
       TimeIntegrator::Implicit{
-          [this](double, std::span<const double> y, std::span<double> ydot) { return brinkman_rhs(y, ydot); },
+          [this](double, std::span<const double> y, std::span<double> ydot) { return implicit_rhs(y, ydot); },
           [this](double, std::span<const double> y, std::span<const double> residual, std::span<double> z, double gamma) {
             return brinkman_solve(y, residual, z, gamma);
           }});
   imex_ = scheme == "imex";
+  for (const auto& term : s.texts("implicit_terms")) {
+    if (term == "viscous") viscous_implicit_ = imex_;
+    if (term == "viscous" && imex_ && !viscous_)
+      s.fail("implicit_terms", "viscous terms are implicit only in a viscous flow (set fluid.reynolds > 0)");
+  }
 
   try {
     grid_ = std::make_unique<AdaptiveGrid<Dim>>(config_);
@@ -694,7 +708,9 @@ bool FluidModel<Dim>::touches_no_slip_wall(const std::array<double, Dim>& lo, co
 }
 
 template <int Dim>
-int FluidModel<Dim>::evaluate_rhs(std::span<const double> y, std::span<double> ydot) {
+int FluidModel<Dim>::evaluate_rhs(std::span<const double> y, std::span<double> ydot, RhsTerms terms) {
+  const bool inviscid_terms = terms != RhsTerms::kViscousOnly;
+  const bool viscous_terms = viscous_ && terms != RhsTerms::kExplicitPart;
   {
     ScopedTimer timer(timers_, "rhs: unpack");  // the integrator's vector into the grid
     unpack(y);
@@ -723,17 +739,29 @@ int FluidModel<Dim>::evaluate_rhs(std::span<const double> y, std::span<double> y
     compute_primitives(s);
     double* out = ydot.data() + s * kFields * per_block;
     const auto h = grid_->spacing(grid_->key(s).level);
-    limited_faces_ += block_inviscid<Dim>(shape, grid_->layout().ghosts, config_.block_size, w, q, h, inviscid,
-                                              block_scratch_, out);
+    if (inviscid_terms)
+      limited_faces_ += block_inviscid<Dim>(shape, grid_->layout().ghosts, config_.block_size, w, q, h, inviscid,
+                                            block_scratch_, out);
+    else
+      std::fill(out, out + kFields * per_block, 0.0);
     const double mid = clock.seconds();
     convection_s += mid - start;
-    if (viscous_) {
+    if (viscous_terms) {
       add_viscous_terms(s, out);
       viscous_s += clock.seconds() - mid;
     }
   }
-  timers_.add("rhs: convection", convection_s);
-  if (viscous_) timers_.add("rhs: viscous", viscous_s);
+  timers_.add(inviscid_terms ? "rhs: convection" : "rhs: implicit", convection_s);
+  if (viscous_terms) timers_.add("rhs: viscous", viscous_s);
+  if (!inviscid_terms) {
+    // The viscous terms alone: inside bodies they carry the blend's weight 1 - chi.
+    if (penalized())
+      for (std::size_t s = 0; s < grid_->local_blocks(); ++s)
+        for (const auto& m : masked_[s])
+          for (int f = 0; f < kFields; ++f) ydot[(s * kFields + static_cast<std::size_t>(f)) * per_block + m.point] *= 1 - m.chi;
+    constrain_walls(ydot, true);
+    return 0;
+  }
   if (sponge_width_ > 0) {
     ScopedTimer timer(timers_, "rhs: sponge");
     for (std::size_t s = 0; s < grid_->local_blocks(); ++s) add_sponge(s, ydot.data() + s * kFields * per_block);
@@ -887,6 +915,18 @@ void FluidModel<Dim>::relax_brinkman(double tau) {
       brinkman_relaxation<Dim>(q, m.chi, m.u0, tau, eta_b_, body.thermal == WallThermal::kIsothermal,
                                body.wall_temperature, gamma_);
     }
+}
+
+template <int Dim>
+int FluidModel<Dim>::implicit_rhs(std::span<const double> y, std::span<double> ydot) {
+  if (!viscous_implicit_) return brinkman_rhs(y, ydot);
+  const int flag = evaluate_rhs(y, ydot, RhsTerms::kViscousOnly);
+  if (flag != 0 || !penalized()) return flag;
+  std::vector<double>& relaxation = implicit_scratch_;
+  relaxation.resize(ydot.size());
+  brinkman_rhs(y, relaxation);
+  for (std::size_t k = 0; k < ydot.size(); ++k) ydot[k] += relaxation[k];
+  return 0;
 }
 
 template <int Dim>
@@ -1424,7 +1464,7 @@ double FluidModel<Dim>::max_stable_dt() const {
       const double c = std::sqrt(std::abs(gamma_ * w.p / w.rho));
       double r = 0;
       for (int a = 0; a < Dim; ++a) r += (std::abs(w.u[static_cast<std::size_t>(a)]) + c) / h[static_cast<std::size_t>(a)];
-      if (viscous_) {
+      if (viscous_ && !viscous_implicit_) {
         // Diffusion: the largest diffusivity (momentum 4/3 nu or heat gamma nu / Pr) times the
         // spectral radius of the narrow 4th-order second derivative, 16/3 per axis / h^2.
         const double nu = sutherland_viscosity(c * c, sutherland_s1_) / (w.rho * reynolds_);
@@ -1976,6 +2016,10 @@ void FluidSystem::declare(SceneSchema& schema) {
          "stiff Brinkman relaxation of bodies implicit, by Newton + preconditioned GMRES, instead of split off "
          "and integrated exactly)")
       .one_of({"rk4", "ssprk3", "error_control", "imex"});
+  s.texts("implicit_terms", std::vector<std::string>{"brinkman"},
+          "imex: the terms integrated implicitly; the Brinkman relaxation of bodies always, and viscous (the "
+          "viscous and heat-conduction terms: no viscous time-step limit; GMRES unpreconditioned for them)")
+      .one_of({"brinkman", "viscous"});
   s.real("rtol", 1e-6, "relative tolerance of error_control; of the Newton and GMRES solves of imex").above(0);
   s.real("atol", 1e-9, "absolute tolerance of error_control; of the Newton and GMRES solves of imex").above(0);
   s.flag("shock_capturing", true, "localised artificial dissipation at shocks");

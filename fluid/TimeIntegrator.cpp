@@ -170,6 +170,9 @@ int imex_step(TimeIntegrator::Impl& m, double t, double dt) {
     if (m.krylov) SUNLinSolFree(m.krylov);
     m.krylov = SUNLinSol_SPGMR(m.y, m.implicit.solve ? SUN_PREC_LEFT : SUN_PREC_NONE, 10, m.context);
     if (!m.krylov) throw std::runtime_error("ARKODE: cannot create the GMRES solver");
+    // 10 Krylov vectors (each as long as the state), restarted up to 5 times: stiff implicit
+    // terms without an exact preconditioner (diffusion) get up to 60 iterations.
+    check(SUNLinSol_SPGMRSetMaxRestarts(m.krylov, 5), "SUNLinSol_SPGMRSetMaxRestarts");
     check(ARKStepSetLinearSolver(m.memory, m.krylov, nullptr), "ARKStepSetLinearSolver");
     if (m.implicit.solve) check(ARKStepSetPreconditioner(m.memory, nullptr, arkode_preconditioner_solve), "ARKStepSetPreconditioner");
   };

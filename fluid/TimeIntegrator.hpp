@@ -14,7 +14,8 @@
 //     by matrix-free GMRES (SUNLinSol_SPGMR, Jacobian-vector products by ARKODE's difference
 //     quotients of f_I) with the caller's preconditioner, an approximate solve of
 //     (I - gamma J_I) z = r. With a pointwise f_I (the Brinkman relaxation) the preconditioner
-//     is the exact block-diagonal inverse and GMRES converges in one iteration.
+//     is the exact block-diagonal inverse and GMRES converges in one iteration; implicit viscous
+//     terms are not in the preconditioner, and GMRES (10 vectors, up to 5 restarts) iterates.
 // ARKODE's integrators are created once and resized (ERKStepResize/ARKStepResize, with a new
 // Krylov solver of the new length) when the number of local unknowns changes, reset otherwise,
 // never rebuilt. Under ARKODE the state is an N_Vector_Parallel over the run's communicator, so
