@@ -2,8 +2,9 @@
 """Run time against error for the fluid solver: Sod (t = 0.2) and the isentropic vortex (t = 1)
 on uniform grids of increasing resolution and on adaptive grids with eps = 1e-2 ... 1e-5 at the
 finest level of the largest uniform grid. Writes one table (case, grid, eps, points computed,
-wall time, L1 density error) as runtime_vs_error.csv and .md into the output folder; plot it with
-postprocess/runtime_vs_error.py.
+wall time, L1 density error) as runtime_vs_error.csv and .md into the output folder, then the
+adaptive runs' wall time over the uniform grids' at the same error (issue 4: at most 1/5 for Sod,
+1/10 for the 2D case); plot it with postprocess/runtime_vs_error.py.
 
 usage: bench/runtime_vs_error.py GRAINWAVE_EXECUTABLE [OUT_FOLDER] [--quick]
 Point counts are point-RHS evaluations (points x RHS calls summed over steps), the work actually
@@ -11,6 +12,7 @@ done; wall time is the run's wall_s (one rank, output only at start and end).
 """
 import csv
 import json
+import math
 import os
 import subprocess
 import sys
@@ -66,6 +68,30 @@ def main():
         for r in table:
             f.write("| " + " | ".join(str(r[k]) for k in keys) + " |\n")
     print(open(os.path.join(out, "runtime_vs_error.md")).read())
+    print(speedups(table))
+
+
+def speedups(table):
+    """Issue 4's targets: at equal L1 error, the adaptive run's wall time against the uniform
+    grids' (log-log interpolation between the two uniform runs that bracket its error; none
+    when the error is outside the uniform range)."""
+    lines = ["| case | eps | L1_rho | adaptive wall_s | uniform wall_s at that error | ratio |",
+             "| --- | --- | --- | --- | --- | --- |"]
+    for name in sorted({r["case"] for r in table}):
+        uniform = sorted(((float(r["L1_rho"]), float(r["wall_s"])) for r in table
+                          if r["case"] == name and r["grid"].startswith("uniform")), reverse=True)
+        for r in table:
+            if r["case"] != name or not r["grid"].startswith("adaptive"):
+                continue
+            error, wall = float(r["L1_rho"]), float(r["wall_s"])
+            at = None
+            for (e0, t0), (e1, t1) in zip(uniform, uniform[1:]):
+                if e1 <= error <= e0 and e0 > e1:
+                    w = math.log(error / e0) / math.log(e1 / e0)
+                    at = math.exp(math.log(t0) + w * (math.log(t1) - math.log(t0)))
+            lines.append(f"| {name} | {r['eps']} | {error:.3e} | {wall:.3f} | "
+                         + (f"{at:.3f} | {wall / at:.3f} |" if at else "— | — |"))
+    return "\n".join(lines)
 
 
 if __name__ == "__main__":

@@ -44,4 +44,32 @@ GRAINWAVE_KERNEL_CLONES void block_viscous_3d(const wavelet::ArrayShape<3>& shap
   add_block_viscous<3>(shape, g, n, h, settings, block, out);
 }
 
+GRAINWAVE_KERNEL_CLONES void primitives_1d(const std::array<const double*, 3>& q, std::size_t volume, double gamma,
+                                           double* rho, const std::array<double*, 1>& u, double* e, double* p) {
+  block_primitives<1>(q, volume, gamma, rho, u, e, p);
+}
+GRAINWAVE_KERNEL_CLONES double max_rate_1d(const wavelet::ArrayShape<1>& shape, int g, int n,
+                                           const std::array<const double*, 3>& q, const std::array<double, 1>& h,
+                                           const StableRateSettings& settings, double* row) {
+  return block_max_rate<1>(shape, g, n, q, h, settings, row);
+}
+GRAINWAVE_KERNEL_CLONES void primitives_2d(const std::array<const double*, 4>& q, std::size_t volume, double gamma,
+                                           double* rho, const std::array<double*, 2>& u, double* e, double* p) {
+  block_primitives<2>(q, volume, gamma, rho, u, e, p);
+}
+GRAINWAVE_KERNEL_CLONES double max_rate_2d(const wavelet::ArrayShape<2>& shape, int g, int n,
+                                           const std::array<const double*, 4>& q, const std::array<double, 2>& h,
+                                           const StableRateSettings& settings, double* row) {
+  return block_max_rate<2>(shape, g, n, q, h, settings, row);
+}
+GRAINWAVE_KERNEL_CLONES void primitives_3d(const std::array<const double*, 5>& q, std::size_t volume, double gamma,
+                                           double* rho, const std::array<double*, 3>& u, double* e, double* p) {
+  block_primitives<3>(q, volume, gamma, rho, u, e, p);
+}
+GRAINWAVE_KERNEL_CLONES double max_rate_3d(const wavelet::ArrayShape<3>& shape, int g, int n,
+                                           const std::array<const double*, 5>& q, const std::array<double, 3>& h,
+                                           const StableRateSettings& settings, double* row) {
+  return block_max_rate<3>(shape, g, n, q, h, settings, row);
+}
+
 }  // namespace grainwave::fluid

@@ -26,6 +26,37 @@ void block_viscous_2d(const wavelet::ArrayShape<2>& shape, int g, int n, const s
 void block_viscous_3d(const wavelet::ArrayShape<3>& shape, int g, int n, const std::array<double, 3>& h,
                       const ViscousSettings& settings, const ViscousBlock<3>& block, double* out);
 
+void primitives_1d(const std::array<const double*, 3>& q, std::size_t volume, double gamma, double* rho,
+                   const std::array<double*, 1>& u, double* e, double* p);
+void primitives_2d(const std::array<const double*, 4>& q, std::size_t volume, double gamma, double* rho,
+                   const std::array<double*, 2>& u, double* e, double* p);
+void primitives_3d(const std::array<const double*, 5>& q, std::size_t volume, double gamma, double* rho,
+                   const std::array<double*, 3>& u, double* e, double* p);
+double max_rate_1d(const wavelet::ArrayShape<1>& shape, int g, int n, const std::array<const double*, 3>& q,
+                   const std::array<double, 1>& h, const StableRateSettings& settings, double* row);
+double max_rate_2d(const wavelet::ArrayShape<2>& shape, int g, int n, const std::array<const double*, 4>& q,
+                   const std::array<double, 2>& h, const StableRateSettings& settings, double* row);
+double max_rate_3d(const wavelet::ArrayShape<3>& shape, int g, int n, const std::array<const double*, 5>& q,
+                   const std::array<double, 3>& h, const StableRateSettings& settings, double* row);
+
+/// block_primitives<Dim>, dispatched to the instruction set at hand.
+template <int Dim>
+inline void primitives(const std::array<const double*, Dim + 2>& q, std::size_t volume, double gamma, double* rho,
+                       const std::array<double*, Dim>& u, double* e, double* p) {
+  if constexpr (Dim == 1) primitives_1d(q, volume, gamma, rho, u, e, p);
+  else if constexpr (Dim == 2) primitives_2d(q, volume, gamma, rho, u, e, p);
+  else primitives_3d(q, volume, gamma, rho, u, e, p);
+}
+
+/// block_max_rate<Dim>, dispatched to the instruction set at hand.
+template <int Dim>
+inline double max_rate(const wavelet::ArrayShape<Dim>& shape, int g, int n, const std::array<const double*, Dim + 2>& q,
+                       const std::array<double, Dim>& h, const StableRateSettings& settings, double* row) {
+  if constexpr (Dim == 1) return max_rate_1d(shape, g, n, q, h, settings, row);
+  else if constexpr (Dim == 2) return max_rate_2d(shape, g, n, q, h, settings, row);
+  else return max_rate_3d(shape, g, n, q, h, settings, row);
+}
+
 /// add_block_inviscid<Dim>, dispatched to the instruction set at hand.
 template <int Dim>
 inline long block_inviscid(const wavelet::ArrayShape<Dim>& shape, int g, int n, const BlockPrimitives<Dim>& w,

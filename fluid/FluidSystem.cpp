@@ -788,7 +788,7 @@ void FluidModel<Dim>::compute_primitives(std::size_t slot) {
   for (int f = 0; f < kFields; ++f) q[static_cast<std::size_t>(f)] = grid_->block(f, slot).data();
   std::array<double*, Dim> u{};
   for (int a = 0; a < Dim; ++a) u[static_cast<std::size_t>(a)] = u_[static_cast<std::size_t>(a)].data();
-  block_primitives<Dim>(q, rho_.size(), gamma_, rho_.data(), u, e_.data(), p_.data());
+  primitives<Dim>(q, rho_.size(), gamma_, rho_.data(), u, e_.data(), p_.data());
 }
 
 template <int Dim>
@@ -1451,28 +1451,16 @@ std::string FluidModel<Dim>::describe() const {
 
 template <int Dim>
 double FluidModel<Dim>::max_stable_dt() const {
-  // Explicit RK with 4th-order central differences: dt <= cfl / max sum_a (|u_a| + c) / h_a.
+  // Explicit RK with 4th-order central differences: dt <= cfl / max rate (block_max_rate).
   double rate = 0;
+  StableRateSettings settings{gamma_, viscous_ && !viscous_implicit_, reynolds_, prandtl_, sutherland_s1_};
+  std::vector<double> row(static_cast<std::size_t>(config_.block_size));
   for (std::size_t s = 0; s < grid_->local_blocks(); ++s) {
     const auto h = grid_->spacing(grid_->key(s).level);
-    std::array<std::span<const double>, kFields> q;
-    for (int f = 0; f < kFields; ++f) q[static_cast<std::size_t>(f)] = grid_->block(f, s);
-    for (const auto at : interior_at_) {
-      Conserved<Dim> point;
-      for (int f = 0; f < kFields; ++f) point[static_cast<std::size_t>(f)] = q[static_cast<std::size_t>(f)][static_cast<std::size_t>(at)];
-      const auto w = to_primitive<Dim>(point, gamma_);
-      const double c = std::sqrt(std::abs(gamma_ * w.p / w.rho));
-      double r = 0;
-      for (int a = 0; a < Dim; ++a) r += (std::abs(w.u[static_cast<std::size_t>(a)]) + c) / h[static_cast<std::size_t>(a)];
-      if (viscous_ && !viscous_implicit_) {
-        // Diffusion: the largest diffusivity (momentum 4/3 nu or heat gamma nu / Pr) times the
-        // spectral radius of the narrow 4th-order second derivative, 16/3 per axis / h^2.
-        const double nu = sutherland_viscosity(c * c, sutherland_s1_) / (w.rho * reynolds_);
-        const double diffusivity = nu * std::max(4.0 / 3.0, gamma_ / prandtl_);
-        for (int a = 0; a < Dim; ++a) r += (16.0 / 3.0) * diffusivity / (h[static_cast<std::size_t>(a)] * h[static_cast<std::size_t>(a)]);
-      }
-      if (std::isfinite(r)) rate = std::max(rate, r);
-    }
+    std::array<const double*, kFields> q{};
+    for (int f = 0; f < kFields; ++f) q[static_cast<std::size_t>(f)] = grid_->block(f, s).data();
+    rate = std::max(rate, max_rate<Dim>(grid_->layout().shape(), grid_->layout().ghosts, config_.block_size, q, h,
+                                        settings, row.data()));
     if (!penalized()) continue;
     for (const auto& m : masked_[s]) {
       // Inside bodies: transport at |n / eta_c + u0| and the numerical viscosity nu_n.

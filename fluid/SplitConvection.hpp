@@ -176,6 +176,13 @@ struct FaceDissipation {
   double coefficient = 0, threshold = 0;
 };
 
+/// What bounds the explicit time step at a point (block_max_rate).
+struct StableRateSettings {
+  double gamma = 1.4;
+  bool viscous = false;  ///< add the explicit viscous and heat-conduction limit
+  double reynolds = 1, prandtl = 0.72, sutherland_s1 = 110.4 / 300.0;
+};
+
 /// Calls row(start, length, first) for each row along x (contiguous in memory) of the box
 /// lo <= i < hi of array coordinates: start is the array index of the row's first point, first
 /// its coordinates. Kernels loop over a row's points with constant offsets to every stencil
@@ -192,6 +199,56 @@ inline void for_each_row(const wavelet::ArrayShape<Dim>& shape, const std::array
     for (int z = lo[2]; z < hi[2]; ++z)
       for (int y = lo[1]; y < hi[1]; ++y) row(shape.index({lo[0], y, z}), length, std::array<int, 3>{lo[0], y, z});
   }
+}
+
+/// The largest rate over a block's interior points that an explicit RK step of 4th-order central
+/// differences must resolve, dt <= cfl / rate:
+///     rate = sum_a (|u_a| + c) / h_a  [+ 16/3 max(4/3, gamma / Pr) nu sum_a 1 / h_a^2],
+/// the diffusion part (spectral radius of the narrow 4th-order second derivative times the
+/// largest diffusivity, momentum 4/3 nu or heat gamma nu / Pr, nu = mu / (rho Re_a)) for
+/// explicit viscous terms. Non-finite rates are skipped (the state check reports them).
+/// row: scratch of at least n values.
+template <int Dim>
+inline double block_max_rate(const wavelet::ArrayShape<Dim>& shape, int g, int n,
+                             const std::array<const double*, Dim + 2>& q_fields, const std::array<double, Dim>& h,
+                             const StableRateSettings& settings, double* row) {
+  const std::array<const double*, Dim + 2> q = q_fields;
+  std::array<int, Dim> lo{}, hi{};
+  lo.fill(g);
+  hi.fill(g + n);
+  double inv_h_sum = 0, inv_h2_sum = 0;
+  std::array<double, Dim> inv_h{};
+  for (std::size_t a = 0; a < static_cast<std::size_t>(Dim); ++a) {
+    inv_h[a] = 1 / h[a];
+    inv_h_sum += inv_h[a];
+    inv_h2_sum += inv_h[a] * inv_h[a];
+  }
+  const double gamma = settings.gamma, gm1 = gamma - 1;
+  const double diffusion = settings.viscous ? (16.0 / 3.0) * std::max(4.0 / 3.0, gamma / settings.prandtl) /
+                                                  settings.reynolds * inv_h2_sum
+                                            : 0.0;
+  double rate = 0;
+  for_each_row<Dim>(shape, lo, hi, [&](std::ptrdiff_t start, int length, const auto&) {
+#pragma GCC ivdep
+    for (int x = 0; x < length; ++x) {
+      const std::ptrdiff_t at = start + x;
+      const double rho = q[0][at], inv_rho = 1 / rho;
+      double kinetic = 0, speeds = 0;
+      for (std::size_t a = 0; a < static_cast<std::size_t>(Dim); ++a) {
+        const double u = q[a + 1][at] * inv_rho;
+        kinetic += u * u;
+        speeds += std::abs(u) * inv_h[a];
+      }
+      const double T = std::abs(gamma * gm1 * (q[Dim + 1][at] * inv_rho - 0.5 * kinetic));  // c^2 = gamma p / rho
+      const double c = std::sqrt(T);
+      double r = speeds + c * inv_h_sum;
+      if (settings.viscous) r += diffusion * sutherland_viscosity(T, settings.sutherland_s1) * inv_rho;
+      row[x] = r;
+    }
+    for (int x = 0; x < length; ++x)
+      if (std::isfinite(row[x])) rate = std::max(rate, row[x]);
+  });
+  return rate;
 }
 
 /// Scratch of add_block_inviscid: per-field arrays of the block's volume (with ghosts).
