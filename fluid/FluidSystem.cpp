@@ -500,6 +500,10 @@ FluidModel<Dim>::FluidModel(const Scene& scene) {
     s.fail("block_size", e.what());
   }
   penalization_ = read_penalization(scene, Dim);
+  // IMEX with nothing implicit would still run ARKODE's Newton iterations on a zero f_I each stage.
+  if (imex_ && !penalized() && !viscous_implicit_)
+    s.fail("time_integrator", "imex: nothing in this scene is implicit (no [[body]], viscous terms explicit); "
+                              "use rk4 or ssprk3, or add \"viscous\" to fluid.implicit_terms");
   if (penalized()) {
     h_min_ = std::numeric_limits<double>::infinity();
     for (double h : grid_->spacing(config_.max_level)) h_min_ = std::min(h_min_, h);

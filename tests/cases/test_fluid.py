@@ -382,6 +382,10 @@ def imex_viscous_implicit():
                      'fluid.implicit_terms=["viscous"]', "--out", scratch("imex_inviscid"), check=2)
     expect("implicit_terms" in proc.stderr,
            f"an inviscid scene with implicit viscous terms: exit 2 naming the key ({proc.stderr.strip().splitlines()[0]})")
+    proc = grainwave("run", case("sod.toml"), "--set", "fluid.time_integrator=imex", "--out", scratch("imex_nothing"),
+                     check=2)
+    expect("time_integrator" in proc.stderr and "nothing" in proc.stderr,
+           f"IMEX with nothing implicit: exit 2 naming the key ({proc.stderr.strip().splitlines()[0]})")
 
 
 def validate_long_runs():
