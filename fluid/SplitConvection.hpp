@@ -87,19 +87,6 @@ inline double second_difference_sensor(const double* f, std::ptrdiff_t i, std::p
   return std::abs(a - 2 * b + c) / (std::abs(a) + 2 * std::abs(b) + std::abs(c));
 }
 
-/// Dissipation coefficient of the face between array points i and i + stride: k s lambda (k s
-/// capped at the Rusanov level 1/2), with s from the sensor over i - 1 .. i + 2; zero in smooth flow.
-/// psi: sensor along this axis; wave: |u_a| + c per point.
-inline double dissipation_coefficient(const double* psi, const double* wave, std::ptrdiff_t i, std::ptrdiff_t stride,
-                                      double coefficient, double threshold) {
-  const double psi_face = std::max(std::max(psi[i - stride], psi[i]), std::max(psi[i + stride], psi[i + 2 * stride]));
-  const double s = psi_face - threshold;
-  if (s <= 0) return 0;
-  // Capped at the Rusanov (local Lax-Friedrichs) level lambda / 2: more is no more robust and
-  // would leave the explicit RK stability region at the CFL step.
-  return std::min(coefficient * s, kMaxDissipation) * std::max(wave[i], wave[i + stride]);
-}
-
 /// Pressure of a conserved state.
 template <int Dim>
 inline double pressure_of(const std::array<double, Dim + 2>& q, double gamma) {
@@ -169,12 +156,6 @@ inline bool limit_face_flux(const std::array<double, Dim + 2>& qL, const std::ar
   for (std::size_t k = 0; k < kF; ++k) flux[k] = theta_p * blended[k] + (1 - theta_p) * low[k];
   return true;
 }
-/// The sensor-localised dissipation of a line (absent: psi == nullptr).
-struct FaceDissipation {
-  const double* psi = nullptr;   ///< sensor along the line's axis, per array point
-  const double* wave = nullptr;  ///< |u_a| + c per array point
-  double coefficient = 0, threshold = 0;
-};
 
 /// What bounds the explicit time step at a point (block_max_rate).
 struct StableRateSettings {
