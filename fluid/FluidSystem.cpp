@@ -266,7 +266,7 @@ class FluidModel : public io::System {
   bool positivity_limiter_ = true;
   double limiter_dt_ = 0;     ///< forward-Euler step the positivity limiter guards (the step's dt)
   long limited_faces_ = 0;    ///< faces the positivity limiter changed, in this process
-  std::vector<double> rho_, p_, e_, wave_;
+  std::vector<double> rho_, p_, e_;
   std::array<std::vector<double>, Dim> u_;
   // Viscous scratch: gradients of u_i along each axis, mu, |u|^2/2, and the fluxes along one axis.
   std::array<std::array<std::vector<double>, Dim>, Dim> gradient_;  // d_j u_i
@@ -557,7 +557,7 @@ void FluidModel<Dim>::layout_changed() {
   const auto shape = grid_->layout().shape();
   const std::size_t volume = shape.size();
   if (rho_.size() == volume) return;
-  for (auto* v : {&rho_, &p_, &e_, &wave_, &temperature_, &kinetic_}) v->assign(volume, 0.0);
+  for (auto* v : {&rho_, &p_, &e_, &temperature_, &kinetic_}) v->assign(volume, 0.0);
   force_rhs_.assign(static_cast<std::size_t>(kFields) * grid_->points_per_block(), 0.0);
   for (auto& v : u_) v.assign(volume, 0.0);
   if (viscous_) {
@@ -1427,7 +1427,7 @@ void FluidModel<Dim>::add_viscous_terms(std::size_t slot, double* out) {
   }
   block.rho = rho_.data();
   block.p = p_.data();
-  block.temperature = wave_.data();  // free until the capturing stage overwrites it
+  block.temperature = temperature_.data();  // add_penalization computes its own afterwards
   block.mu = mu_.data();
   block.kinetic = kinetic_.data();
   for (std::size_t f = 0; f <= static_cast<std::size_t>(Dim); ++f) block.flux[f] = viscous_flux_[f].data();

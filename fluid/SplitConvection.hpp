@@ -1,6 +1,6 @@
 #pragma once
 // Inviscid terms of the compressible Euler/Navier-Stokes equations (002 Eqs 2.1-2.3 without the
-// viscous parts) on one block line, in conservative form with face fluxes,
+// viscous parts) on one block, in conservative form with face fluxes,
 //     dq_i/dt = -[ F_{i+1/2} - F_{i-1/2} ] / h   (summed over the axes).
 //
 // Central part: the kinetic-energy-preserving split form of Kennedy & Gruber (J. Comput. Phys.
@@ -87,14 +87,6 @@ inline double second_difference_sensor(const double* f, std::ptrdiff_t i, std::p
   return std::abs(a - 2 * b + c) / (std::abs(a) + 2 * std::abs(b) + std::abs(c));
 }
 
-/// Pressure of a conserved state.
-template <int Dim>
-inline double pressure_of(const std::array<double, Dim + 2>& q, double gamma) {
-  double momentum2 = 0;
-  for (std::size_t k = 1; k <= static_cast<std::size_t>(Dim); ++k) momentum2 += q[k] * q[k];
-  return (gamma - 1) * (q[Dim + 1] - 0.5 * momentum2 / q[0]);
-}
-
 /// Positivity-preserving limiter of one face flux (after Hu, Adams & Shu, J. Comput. Phys. 242,
 /// 2013, in flux-deviation form). A forward-Euler step of length dt updates point i by
 /// -dt/h (F_{i+1/2} - F_{i-1/2}) summed over the Dim axes; as the point's own Euler flux f_i
@@ -124,7 +116,7 @@ inline bool limit_face_flux(const std::array<double, Dim + 2>& qL, const std::ar
       right[k] = qR[k] + sigma * (f[k] - fR[k]);
     }
   };
-  auto admissible = [&](const State& s) { return s[0] > floor_rho && pressure_of<Dim>(s, gamma) > floor_p; };
+  auto admissible = [&](const State& s) { return s[0] > floor_rho && to_primitive<Dim>(s, gamma).p > floor_p; };
   State left{}, right{};
   states(flux, left, right);
   if (admissible(left) && admissible(right)) return false;
@@ -149,8 +141,8 @@ inline bool limit_face_flux(const std::array<double, Dim + 2>& qL, const std::ar
   // the secant; the secant's root is a safe theta.
   double theta_p = 1;
   for (const auto* pair : {&left, &right}) {
-    const double p_high = pressure_of<Dim>(*pair, gamma);
-    const double p_low = pressure_of<Dim>(pair == &left ? low_left : low_right, gamma);
+    const double p_high = to_primitive<Dim>(*pair, gamma).p;
+    const double p_low = to_primitive<Dim>(pair == &left ? low_left : low_right, gamma).p;
     if (p_high < floor_p) theta_p = std::min(theta_p, std::max(0.0, (p_low - floor_p) / (p_low - p_high)));
   }
   for (std::size_t k = 0; k < kF; ++k) flux[k] = theta_p * blended[k] + (1 - theta_p) * low[k];
@@ -180,6 +172,16 @@ inline void for_each_row(const wavelet::ArrayShape<Dim>& shape, const std::array
     for (int z = lo[2]; z < hi[2]; ++z)
       for (int y = lo[1]; y < hi[1]; ++y) row(shape.index({lo[0], y, z}), length, std::array<int, 3>{lo[0], y, z});
   }
+}
+
+/// Interior point number (x fastest) of the array point with coordinates `first`, for a block of
+/// n^Dim interior points from array coordinate g on.
+template <int Dim>
+inline std::size_t interior_point_number(const std::array<int, Dim>& first, int g, int n) {
+  std::size_t point = 0;
+  for (int b = Dim - 1; b >= 0; --b)
+    point = point * static_cast<std::size_t>(n) + static_cast<std::size_t>(first[static_cast<std::size_t>(b)] - g);
+  return point;
 }
 
 /// The largest rate over a block's interior points that an explicit RK step of 4th-order central
@@ -389,8 +391,7 @@ inline long add_block_inviscid(const wavelet::ArrayShape<Dim>& shape, int g, int
     // The divergence at the interior points.
     const double inv_h = 1 / h[au];
     for_each_row<Dim>(shape, interior_lo, interior_hi, [&](std::ptrdiff_t start, int length, const auto& first) {
-      std::size_t point = 0;
-      for (int b = Dim - 1; b >= 0; --b) point = point * static_cast<std::size_t>(n) + static_cast<std::size_t>(first[static_cast<std::size_t>(b)] - g);
+      const std::size_t point = interior_point_number<Dim>(first, g, n);
       for (std::size_t k = 0; k < kF; ++k) {
         double* o = out + k * per_block + point;
         const double* fk = face[k] + start;
@@ -416,8 +417,7 @@ inline long add_block_inviscid(const wavelet::ArrayShape<Dim>& shape, int g, int
   const double dt = 2 * settings.limiter_dt, gm1 = settings.gamma - 1;
   int violations = 0;
   for_each_row<Dim>(shape, interior_lo, interior_hi, [&](std::ptrdiff_t start, int length, const auto& first) {
-    std::size_t point = 0;
-    for (int b = Dim - 1; b >= 0; --b) point = point * static_cast<std::size_t>(n) + static_cast<std::size_t>(first[static_cast<std::size_t>(b)] - g);
+    const std::size_t point = interior_point_number<Dim>(first, g, n);
     int row = 0;
     for (int x = 0; x < length; ++x) {
       const std::ptrdiff_t i = start + x;

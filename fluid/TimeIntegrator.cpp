@@ -102,7 +102,7 @@ std::span<double> TimeIntegrator::state(std::size_t local_size) {
     return {m.state.data(), m.state.size()};
   }
   // Collective: every rank resizes when any rank's share changed, so all take the same ARKODE
-  // path (ERKStepResize or ERKStepReset) and its global reductions stay matched.
+  // path (ERKStep/ARKStep Resize or Reset) and its global reductions stay matched.
   int changed = (!m.y || local_size != m.size) ? 1 : 0;
   MPI_Allreduce(MPI_IN_PLACE, &changed, 1, MPI_INT, MPI_LOR, m.comm);
   if (changed) {

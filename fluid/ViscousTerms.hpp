@@ -160,9 +160,7 @@ inline void add_block_viscous(const wavelet::ArrayShape<Dim>& shape, int g, int 
       }
     });
     for_each_row<Dim>(shape, interior_lo, interior_hi, [&](std::ptrdiff_t start, int length, const auto& first) {
-      std::size_t point = 0;
-      for (int b = Dim - 1; b >= 0; --b)
-        point = point * static_cast<std::size_t>(n) + static_cast<std::size_t>(first[static_cast<std::size_t>(b)] - g);
+      const std::size_t point = interior_point_number<Dim>(first, g, n);
       for (std::size_t f = 0; f <= static_cast<std::size_t>(Dim); ++f) {
         double* o = out + (f + 1) * per_block + point;
         const double* fl = flux[f];

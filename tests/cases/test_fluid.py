@@ -223,7 +223,7 @@ def characteristic_edges():
 
 
 def too_large_cfl_is_caught():
-    s, out, proc = run("sod.toml", "fluid.cfl=5", check=3)
+    s, out, proc = run("sod.toml", "fluid.cfl=5", check=3, out=scratch("sod_too_large_cfl"))
     text = proc.stdout + proc.stderr
     expect(s["status"] == "failed", "summary.json says the run failed")
     expect(("negative pressure" in text or "negative density" in text or "non-finite" in text) and "at x = (" in text,
