@@ -62,39 +62,12 @@ double EventDrivenCollider::key(int i) const {
   return std::min(p.collision_time, p.crossing_time);
 }
 
-void EventDrivenCollider::heap_update(int i) {
-  // A 4-ary heap: half the levels of a binary one, and the four children of a slot are one
-  // cache line (HeapEntry is 16 bytes, slots 4 s + 1 to 4 s + 4 start on a line boundary), so a
-  // sift costs one dependent miss per level. The earliest child is found by a branch-free
-  // tournament; entries past the end are +inf sentinels.
-  HeapEntry* heap = this->heap();
-  int* position = heap_position_.data();
-  const int n = static_cast<int>(heap_position_.size());
-  const HeapEntry entry{key(i), i};
-  int slot = position[i];
-  while (slot > 0) {  // sift up
-    const int parent = (slot - 1) / kHeapArity;
-    if (!(heap[parent].time > entry.time)) break;
-    heap[slot] = heap[parent];
-    position[heap[slot].particle] = slot;
-    slot = parent;
-  }
-  while (true) {  // sift down
-    const int first = kHeapArity * slot + 1;
-    if (first >= n) break;
-    const int left = first + static_cast<int>(heap[first + 1].time < heap[first].time);
-    const int right = first + 2 + static_cast<int>(heap[first + 3].time < heap[first + 2].time);
-    const int child = heap[right].time < heap[left].time ? right : left;
-    if (!(heap[child].time < entry.time)) break;
-    heap[slot] = heap[child];
-    position[heap[slot].particle] = slot;
-    slot = child;
-  }
-  heap[slot] = entry;
-  position[i] = slot;
+void EventDrivenCollider::predict_and_schedule(int i, int layer) {
+  predict(i, layer);
+  calendar_.update(i, key(i));
 }
 
-void EventDrivenCollider::sync(ParticleStore& store, int i, double t) {
+void EventDrivenCollider::sync(int i, double t) {
   const auto k = static_cast<std::size_t>(i);
   Flight& f = flight_[k];
   const double tau = t - f.clock;
@@ -102,7 +75,10 @@ void EventDrivenCollider::sync(ParticleStore& store, int i, double t) {
   // Fixed particles exist only with zero acceleration (initialize), so one a serves all.
   f.position += f.velocity * tau + 0.5 * acceleration_ * tau * tau;
   f.velocity += acceleration_ * tau;
-  store.angular_velocity[k] += angular_acceleration_[k] * tau;
+  if (spinning_) {  // else the angular velocities change only in collisions
+    Spin& spin = spin_[k];
+    spin.angular_velocity += spin.angular_acceleration * tau;
+  }
   f.clock = t;
 }
 
@@ -116,7 +92,7 @@ double EventDrivenCollider::next_crossing(int i, const Vec3& x, const Vec3& v, i
   std::array<double, 6> exit{};
   for (int axis = 0; axis < 3; ++axis) {
     const auto ax = static_cast<std::size_t>(axis);
-    const int c = cell_of_[k][ax];
+    const int c = pending_[k].cell[ax];
     const double gap_low = x[axis] - (lo_[axis] + c * cell_size_[ax]);
     const double gap_high = lo_[axis] + (c + 1) * cell_size_[ax] - x[axis];
     double low, high;
@@ -175,7 +151,7 @@ void EventDrivenCollider::unbin(int i) {
 
 void EventDrivenCollider::grow_cells() {
   const std::size_t n_blocks = (blocks_.size() - kSlotChunk) / static_cast<std::size_t>(block_);
-  std::vector<int> grown(n_blocks * static_cast<std::size_t>(2 * block_) + kSlotChunk, -1);
+  HugePageVector<int> grown(n_blocks * static_cast<std::size_t>(2 * block_) + kSlotChunk, -1);
   for (std::size_t c = 0; c < n_blocks; ++c) {
     const int* from = blocks_.data() + c * static_cast<std::size_t>(block_);
     int* to = grown.data() + c * static_cast<std::size_t>(2 * block_);
@@ -429,7 +405,7 @@ void EventDrivenCollider::scan(int i, int count, const Vec3& x, const Vec3& v, P
   }
 }
 
-void EventDrivenCollider::predict(const ParticleStore& store, int i, int layer) {
+void EventDrivenCollider::predict(int i, int layer) {
   const auto k = static_cast<std::size_t>(i);
   Pending& p = pending_[k];
   const Flight& fi = flight_[k];
@@ -437,8 +413,8 @@ void EventDrivenCollider::predict(const ParticleStore& store, int i, int layer) 
   const Vec3& a = acceleration_;
   const Vec3 x = fi.position + fi.velocity * tau + 0.5 * a * tau * tau;
   const Vec3 v = fi.velocity + a * tau;
-  const auto& c = cell_of_[k];
-  const bool fixed = store.is_fixed(k);
+  const auto& c = p.cell;
+  const bool fixed = p.fixed;
   if (layer < 0) {
     ++predictions_;
     p.collision_time = kNever;
@@ -477,14 +453,13 @@ void EventDrivenCollider::predict(const ParticleStore& store, int i, int layer) 
     }
     scan(i, gather(layer_cells.data(), layer_size_), x, v, p);
   }
-  if (fixed && p.partner >= 0 && store.is_fixed(static_cast<std::size_t>(p.partner))) {
+  if (fixed && p.partner >= 0 && pending_[static_cast<std::size_t>(p.partner)].fixed) {
     p.collision_time = kNever;  // two immovable particles never collide (fixed ones are at rest)
     p.partner = kNoPartner;
   }
   int face = 0;
   p.crossing_time = now_ + next_crossing(i, x, v, &face);
   p.crossing_face = face;
-  heap_update(i);
 }
 
 void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain, double start_time) {
@@ -580,46 +555,40 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
         const int padded = (pz * padded_cells_[1] + py) * padded_cells_[0] + px;
         padded_cell_[static_cast<std::size_t>(padded)] = inside ? cell_index(cell) : empty_cell_;
       }
-  cell_of_.resize(n);
   slot_of_.resize(n);
   flight_.resize(n);
   counter_.assign(n, 0u);
-  burst_start_.assign(n, -kNever);
-  burst_count_.assign(n, 0u);
-  pending_.assign(n, Pending{kNever, kNever, kNoPartner, 0u, 0});
-  angular_acceleration_.resize(n);
-  // Room to shift the heap by up to a line, so that slot 1 (the first group of children) starts
-  // one: malloc aligns to 16 bytes only. A copied collider may lose the alignment, not the order.
-  constexpr std::size_t kLine = 64, kPerLine = kLine / sizeof(HeapEntry);
-  heap_storage_.assign(n + kHeapArity - 1 + kPerLine, HeapEntry{kNever, -1});  // sentinels
-  const auto first_child = reinterpret_cast<std::uintptr_t>(heap_storage_.data() + 1);
-  heap_offset_ = (kLine - first_child % kLine) % kLine / sizeof(HeapEntry);
-  heap_position_.resize(n);
-  HeapEntry* heap = this->heap();
+  pending_.assign(n, Pending{kNever, kNever, kNoPartner, 0u, 0, 0u, -kNever, {0, 0, 0}, false});
+  spin_.resize(n);
+  spinning_ = false;
   for (std::size_t i = 0; i < n; ++i) {
-    heap[i] = HeapEntry{kNever, static_cast<int>(i)};
-    heap_position_[i] = static_cast<int>(i);
-    angular_acceleration_[i] = store.torque[i] * store.inverse_inertia(i);
+    spin_[i] = Spin{store.angular_velocity[i], store.torque[i] * store.inverse_inertia(i),
+                    store.inverse_mass(i), store.inverse_inertia(i)};
+    pending_[i].fixed = store.is_fixed(i);
+    spinning_ = spinning_ || !spin_[i].angular_acceleration.isZero(0.0);
     domain.wrap(store.position[i]);
     flight_[i] = Flight{store.position[i], now_, store.velocity[i], store.radius[i]};
     for (std::size_t ax = 0; ax < 3; ++ax) {
       const auto k = static_cast<int>(ax);
       const double s = (flight_[i].position[k] - lo_[k]) / cell_size_[ax];
-      cell_of_[i][ax] = k >= dimension_ ? 0 : std::clamp(static_cast<int>(std::floor(s)), 0, cells_[ax] - 1);
+      pending_[i].cell[ax] = k >= dimension_ ? 0 : std::clamp(static_cast<int>(std::floor(s)), 0, cells_[ax] - 1);
     }
   }
   // Blocks with room to spare over the fullest cell, so that growing mid-step is rare.
   std::vector<int> occupancy(n_cells + 1, 0);  // and the empty cell
   for (std::size_t i = 0; i < n; ++i) {
-    ++occupancy[static_cast<std::size_t>(cell_index(cell_of_[i]))];
+    ++occupancy[static_cast<std::size_t>(cell_index(pending_[i].cell))];
   }
   const int fullest = *std::max_element(occupancy.begin(), occupancy.end());
   block_ = kSlotChunk * ((fullest + fullest / 4 + 2 + kSlotChunk - 1) / kSlotChunk);
   blocks_.assign((n_cells + 1) * static_cast<std::size_t>(block_) + kSlotChunk, 0);
   candidates_.assign(27 * static_cast<std::size_t>(block_) + kScanLanes, -1);
   columns_.resize(candidates_.size());
-  for (std::size_t i = 0; i < n; ++i) bin(static_cast<int>(i), cell_index(cell_of_[i]));
-  for (std::size_t i = 0; i < n; ++i) predict(store, static_cast<int>(i), -1);
+  for (std::size_t i = 0; i < n; ++i) bin(static_cast<int>(i), cell_index(pending_[i].cell));
+  for (std::size_t i = 0; i < n; ++i) predict(static_cast<int>(i), -1);
+  std::vector<double> keys(n);
+  for (std::size_t i = 0; i < n; ++i) keys[i] = key(static_cast<int>(i));
+  calendar_.reset(keys);
 }
 
 EventStats EventDrivenCollider::advance_to(ParticleStore& store, const Domain& domain, double target) {
@@ -627,9 +596,9 @@ EventStats EventDrivenCollider::advance_to(ParticleStore& store, const Domain& d
   predictions_ = pair_checks_ = 0;
   const std::size_t n = store.size();
   if (n != flight_.size()) throw std::logic_error("EventDrivenCollider: store changed size");
-  const HeapEntry* heap = this->heap();
-  while (n > 0 && heap[0].time <= target) {
-    const int i = heap[0].particle;
+  while (n > 0) {
+    const int i = calendar_.top();
+    if (i < 0 || calendar_.time(i) > target) break;
     const auto a = static_cast<std::size_t>(i);
     Pending& p = pending_[a];
     now_ = key(i);
@@ -638,21 +607,21 @@ EventStats EventDrivenCollider::advance_to(ParticleStore& store, const Domain& d
       const int axis = face / 2;
       const auto ax = static_cast<std::size_t>(axis);
       const int step = face % 2 == 0 ? -1 : 1;
-      sync(store, i, now_);
+      sync(i, now_);
       unbin(i);
-      int c = cell_of_[a][ax] + step;
+      int c = p.cell[ax] + step;
       if (c < 0) c += cells_[ax];
       if (c >= cells_[ax]) c -= cells_[ax];
-      cell_of_[a][ax] = c;
+      p.cell[ax] = c;
       // Snap onto the shared face (wrapped) so the new cell's exit test starts exactly at 0.
       flight_[a].position[axis] = lo_[axis] + (step > 0 ? c : c + 1) * cell_size_[ax];
-      const int new_cell = cell_index(cell_of_[a]);
+      const int new_cell = cell_index(p.cell);
       if (blocks_[static_cast<std::size_t>(new_cell * block_)] == block_ - 1) grow_cells();
       bin(i, new_cell);
       ++stats.cell_crossings;
       const bool stale = p.partner >= 0 && counter_[static_cast<std::size_t>(p.partner)] != p.partner_count;
       stats.stale_events += stale ? 1 : 0;
-      predict(store, i, stale ? -1 : face);
+      predict_and_schedule(i, stale ? -1 : face);
       continue;
     }
     const int partner = p.partner;
@@ -660,24 +629,24 @@ EventStats EventDrivenCollider::advance_to(ParticleStore& store, const Domain& d
     const auto b = static_cast<std::size_t>(pair ? partner : 0);
     if (pair && counter_[b] != p.partner_count) {
       ++stats.stale_events;
-      predict(store, i, -1);
+      predict_and_schedule(i, -1);
       continue;
     }
-    sync(store, i, now_);
+    sync(i, now_);
     Body body_a;
     body_a.velocity = flight_[a].velocity;
-    body_a.angular_velocity = store.angular_velocity[a];
-    body_a.inverse_mass = store.inverse_mass(a);
-    body_a.inverse_inertia = store.inverse_inertia(a);
+    body_a.angular_velocity = spin_[a].angular_velocity;
+    body_a.inverse_mass = spin_[a].inverse_mass;
+    body_a.inverse_inertia = spin_[a].inverse_inertia;
     body_a.radius = flight_[a].radius;
     Body body_b;
     Vec3 normal = Vec3::Zero();
     if (pair) {
-      sync(store, partner, now_);
+      sync(partner, now_);
       body_b.velocity = flight_[b].velocity;
-      body_b.angular_velocity = store.angular_velocity[b];
-      body_b.inverse_mass = store.inverse_mass(b);
-      body_b.inverse_inertia = store.inverse_inertia(b);
+      body_b.angular_velocity = spin_[b].angular_velocity;
+      body_b.inverse_mass = spin_[b].inverse_mass;
+      body_b.inverse_inertia = spin_[b].inverse_inertia;
       body_b.radius = flight_[b].radius;
       normal = domain.separation(flight_[a].position, flight_[b].position).normalized();
     } else {
@@ -689,14 +658,15 @@ EventStats EventDrivenCollider::advance_to(ParticleStore& store, const Domain& d
     const double burst_span = 1e4 * std::numeric_limits<double>::epsilon() * std::max(1.0, std::abs(now_));
     for (int member = 0; member < (pair ? 2 : 1); ++member) {
       const std::size_t m = member == 0 ? a : b;
-      if (now_ - burst_start_[m] <= burst_span) {
-        if (++burst_count_[m] > kBurstLimit) {
+      Pending& burst = pending_[m];
+      if (now_ - burst.burst_start <= burst_span) {
+        if (++burst.burst_count > kBurstLimit) {
           throw NumericalFailure("hard-sphere collisions piled up at one instant (inelastic "
                                  "collapse or a resting contact)", "EventDrivenCollider", now_, -1);
         }
       } else {
-        burst_start_[m] = now_;
-        burst_count_[m] = 0;
+        burst.burst_start = now_;
+        burst.burst_count = 0;
       }
     }
     const CollisionImpulse impulse = collide(body_a, body_b, normal, settings_.law);
@@ -707,26 +677,27 @@ EventStats EventDrivenCollider::advance_to(ParticleStore& store, const Domain& d
     }
     ++counter_[a];  // even a grazing no-op: the rescan below must not return the same contact
     flight_[a].velocity = body_a.velocity;
-    store.angular_velocity[a] = body_a.angular_velocity;
+    spin_[a].angular_velocity = body_a.angular_velocity;
     if (pair) {
       ++counter_[b];
       flight_[b].velocity = body_b.velocity;
-      store.angular_velocity[b] = body_b.angular_velocity;
+      spin_[b].angular_velocity = body_b.angular_velocity;
     }
     if (impulse.approaching) {
       ++(pair ? stats.collisions : stats.wall_hits);
       if (log_) log_->push_back(CollisionRecord{now_, store.id[a], pair ? store.id[b] : partner});
     }
-    predict(store, i, -1);
-    if (pair) predict(store, partner, -1);
+    predict_and_schedule(i, -1);
+    if (pair) predict_and_schedule(partner, -1);
   }
   stats.predictions = predictions_;
   stats.pair_checks = pair_checks_;
   now_ = target;
   for (std::size_t i = 0; i < n; ++i) {
-    sync(store, static_cast<int>(i), target);
+    sync(static_cast<int>(i), target);
     store.position[i] = flight_[i].position;
     store.velocity[i] = flight_[i].velocity;
+    store.angular_velocity[i] = spin_[i].angular_velocity;
   }
   return stats;
 }

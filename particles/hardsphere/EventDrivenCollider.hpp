@@ -9,7 +9,8 @@
 // state is stored at the time of its last event and extrapolated with Eqs 2.11–2.13 on demand.
 // Cells are at least one largest diameter wide. Each particle holds only its earliest predicted
 // collision (partner or wall, with the partner's collision counter at prediction time) and its
-// next cell crossing; an indexed 4-ary heap over particles orders them. Why this is complete:
+// next cell crossing; a calendar queue over particles orders them (EventCalendar.hpp: earliest
+// first, ties to the lower index). Why this is complete:
 // every pair that will touch is adjacent from the later of the partners' last events on, and each
 // of those events scans the cells that became adjacent (all 27 after a collision, the new layer
 // of 9 after a crossing); a candidate whose partner has collided since is stale and triggers a
@@ -26,17 +27,18 @@
 // and leaves the loop to the compiler's vectoriser. Both do the arithmetic of
 // ballistic_contact_time_or_never in the same order (no FMA), and the earliest candidate is the
 // first at the minimum, as a sequential scan would pick: none of this changes a result. The next
-// cell crossing is picked by selects too, and the 4-ary heap is laid out so that each group of
-// four children is one cache line. A cell that overflows its block doubles every block (rare:
-// blocks start with room above the fullest cell at binning).
+// cell crossing is picked by selects too. A cell that overflows its block doubles every block
+// (rare: blocks start with room above the fullest cell at binning).
 #include <array>
 #include <cstdint>
 #include <vector>
 
+#include "core/HugePageAllocator.hpp"
 #include "particles/Domain.hpp"
 #include "particles/ParticleStore.hpp"
 #include "particles/hardsphere/CollisionImpulse.hpp"
 #include "particles/hardsphere/CollisionRecord.hpp"
+#include "particles/hardsphere/EventCalendar.hpp"
 
 // scan() has an AVX2 kernel, picked at run time, where the compiler can target it.
 #if defined(__x86_64__) && defined(__GNUC__)
@@ -87,7 +89,6 @@ class EventDrivenCollider {
  private:
   static constexpr int kNoPartner = -1000;  ///< partners >= 0 are particles, -1 - face are walls
   static constexpr std::uint32_t kBurstLimit = 256;  ///< collisions of one particle a few ulps apart
-  static constexpr int kHeapArity = 4;  ///< children per node of the event heap
   static constexpr int kSlotChunk = 8;  ///< gather() copies blocks in chunks of this many slots
   static constexpr int kScanLanes = 4;  ///< scan() pads its candidates to a multiple of this
   static constexpr std::size_t kCachedPaddedCells = 1 << 16;  ///< 256 KiB of cell indices
@@ -101,19 +102,34 @@ class EventDrivenCollider {
     double radius;
   };
   static_assert(sizeof(Vec3) == 3 * sizeof(double));
-  /// The particle's pending events: earliest predicted collision and next cell crossing.
-  struct Pending {
+  /// The rest of what an event reads and writes of its particle, in one cache line: its pending
+  /// events (earliest predicted collision, next cell crossing), its cell, and the collapse
+  /// detector's burst. (The collision counters stay a dense array of their own: every scan
+  /// reads its candidates' counters, which then fit in cache, as these lines would not.)
+  struct alignas(64) Pending {
     double collision_time;
     double crossing_time;
     int partner;
     std::uint32_t partner_count;
     int crossing_face;  ///< 2 axis + (0 low, 1 high)
+    std::uint32_t burst_count;
+    double burst_start;  ///< collapse detection: start of the current burst of collisions
+    std::array<int, 3> cell;
+    bool fixed;  ///< immovable (ParticleStore::is_fixed)
+  };
+  /// What a collision reads and writes of its particle besides Flight, in one cache line: the
+  /// store's angular velocity (authoritative while events are pending, like Flight), the
+  /// angular acceleration from its torque, and the inverse mass and moment of inertia.
+  struct alignas(64) Spin {
+    Vec3 angular_velocity;
+    Vec3 angular_acceleration;
+    double inverse_mass, inverse_inertia;
   };
 
-  void sync(ParticleStore& store, int i, double t);
+  void sync(int i, double t);
   /// Rescans all adjacent cells and walls (layer < 0), or after a crossing only the cells that
   /// became adjacent (layer = crossed face), keeping the earlier of old and new candidates.
-  void predict(const ParticleStore& store, int i, int layer);
+  void predict(int i, int layer);
   /// Copies the particles of `cells` into candidates_ and returns how many there are.
   int gather(const int* cells, int count);
   /// Updates p with the earliest contact of i (at x, moving with v) with the first `count`
@@ -149,7 +165,8 @@ class EventDrivenCollider {
   /// Time from now until particle i leaves its cell, and across which face; +inf if never.
   double next_crossing(int i, const Vec3& x, const Vec3& v, int* face) const;
   double key(int i) const;
-  void heap_update(int i);
+  /// predict(), then the particle's new key() into the calendar.
+  void predict_and_schedule(int i, int layer);
 
   EventDrivenSettings settings_;
   bool avx2_ = false;  ///< whether scan() uses contact_times_avx2()
@@ -165,39 +182,27 @@ class EventDrivenCollider {
   std::array<bool, 3> periodic_{true, true, true};
   std::array<double, 3> half_image_{};  ///< half the length of periodic axes, +inf on the others
   std::array<std::array<bool, 2>, 3> wall_{};
-  std::vector<Flight> flight_;               ///< authoritative x, v while events are pending
-  std::vector<Pending> pending_;
-  std::vector<std::uint32_t> counter_;       ///< collisions so far (stale-candidate test)
-  std::vector<double> burst_start_;          ///< collapse detection: start of the current burst
-  std::vector<std::uint32_t> burst_count_;
-  std::vector<std::array<int, 3>> cell_of_;  ///< current cell of each particle
+  HugePageVector<Flight> flight_;               ///< authoritative x, v while events are pending
+  HugePageVector<Pending> pending_;
+  HugePageVector<Spin> spin_;
+  bool spinning_ = false;  ///< whether any particle has an angular acceleration
+  HugePageVector<std::uint32_t> counter_;       ///< collisions so far (stale-candidate test)
   int block_ = 8;                            ///< ints per cell block, a multiple of kSlotChunk
-  std::vector<int> blocks_;                  ///< per cell: occupancy, then particles; spare chunk
-  std::vector<int> slot_of_;                 ///< index into blocks_ of each particle
+  HugePageVector<int> blocks_;                  ///< per cell: occupancy, then particles; spare chunk
+  HugePageVector<int> slot_of_;                 ///< index into blocks_ of each particle
   std::vector<int> candidates_;              ///< scratch of gather(): 27 whole blocks and padding
   CandidateColumns columns_;                 ///< scratch of scan()
   int stencil_size_ = 27;                    ///< adjacent cells of a cell, itself included
   std::array<int, 3> pad_{};                 ///< layers of border cells (1 on the active axes)
   std::array<int, 3> padded_cells_{};
-  std::vector<int> padded_cell_;             ///< padded grid -> cell (wrapped, or the empty one)
+  HugePageVector<int> padded_cell_;             ///< padded grid -> cell (wrapped, or the empty one)
   std::array<int, 27> stencil_offset_{};     ///< the adjacent cells' offsets in the padded grid
   std::array<int, 27> interior_offset_{};    ///< and in the grid itself, from an interior cell
   bool arithmetic_interior_ = false;         ///< whether interior cells use interior_offset_
   int empty_cell_ = 0;                       ///< stands in for cells beyond walls (n_cells)
   int layer_size_ = 9;                       ///< cells one step across a face
   std::array<std::array<int, 9>, 6> layer_offsets_{};  ///< their positions in a stencil, per face
-  std::vector<Vec3> angular_acceleration_;
-  struct HeapEntry {
-    double time;  ///< key() of the particle, cached for the sift loops
-    int particle;
-  };
-  /// Indexed 4-ary min-heap of particles by key(), with kHeapArity - 1 sentinels after its end:
-  /// heap_storage_ from heap_offset_ on, placed so that every group of four children is one
-  /// cache line (see initialize()).
-  std::vector<HeapEntry> heap_storage_;
-  std::size_t heap_offset_ = 0;
-  HeapEntry* heap() { return heap_storage_.data() + heap_offset_; }
-  std::vector<int> heap_position_;
+  EventCalendar calendar_;  ///< the particles by key()
   long predictions_ = 0, pair_checks_ = 0;
 };
 
