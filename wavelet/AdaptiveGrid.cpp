@@ -11,6 +11,7 @@
 #include <unordered_set>
 
 #include "wavelet/BlockPrediction.hpp"
+#include "wavelet/DetailKernels.hpp"
 
 namespace grainwave::wavelet {
 
@@ -793,6 +794,17 @@ void AdaptiveGrid<Dim>::block_details(int field, std::size_t slot, std::span<dou
 
 template <int Dim>
 std::pair<double, double> AdaptiveGrid<Dim>::detail_maxima(const double* u, const DetailStencils& stencils) const {
+  if (stencils.centred) {
+    // The stages' scratch: x-predicted lines, then (3D) y-predicted planes, then the last axis.
+    const auto ubs = static_cast<std::size_t>(config_.block_size);
+    const auto uw = ubs + 2 * static_cast<std::size_t>(layout_.ghosts);
+    std::size_t lines = 1;
+    for (int a = 1; a < Dim; ++a) lines *= uw;
+    stage_[0].resize(lines * ubs);
+    if constexpr (Dim >= 2) stage_[Dim - 1].resize(Dim == 2 ? ubs : uw * ubs * ubs + ubs * ubs);
+    const CentredRows<Dim> rows{config_.block_size, layout_.ghosts, config_.order, stencils.centred_weights, stencils.near};
+    return centred_detail_maxima(u, rows, stage_[0].data(), Dim >= 2 ? stage_[Dim - 1].data() : nullptr);
+  }
   // As block_details, without storing them: lanes of |u - P u| kept apart (packed maxima; NaNs
   // ignored, as std::max over the coefficients would). At all-even points u - P u is exactly 0
   // (P is the identity there), so no point needs to be singled out. The near maximum leaves out
@@ -1328,6 +1340,21 @@ const typename AdaptiveGrid<Dim>::DetailStencils& AdaptiveGrid<Dim>::detail_sten
     }
     cached->bound *= widest;
   }
+  // Centred throughout? (The weights of the first odd row; every odd row must match them.)
+  const int order = config_.order;
+  cached->centred = true;
+  cached->centred_weights = cached->axis[0][1].w;
+  for (int a = 0; a < Dim; ++a)
+    for (int i = 0; i < bs; ++i) {
+      const AxisStencil& row = cached->axis[static_cast<std::size_t>(a)][static_cast<std::size_t>(i)];
+      bool same = row.size == (i % 2 == 0 ? 1 : order);
+      for (int k = 0; k < row.size && same; ++k) {
+        const auto ku = static_cast<std::size_t>(k);
+        same = i % 2 == 0 ? row.at[ku] == i + g && row.w[ku] == 1.0
+                          : row.at[ku] == i + g + 2 * k - (order - 1) && row.w[ku] == cached->centred_weights[ku];
+      }
+      cached->centred = cached->centred && same;
+    }
   return *cached;
 }
 

@@ -245,6 +245,12 @@ class AdaptiveGrid {
     std::array<std::array<AxisStencil, kMaxBlockSize>, Dim> axis;
     std::array<std::array<bool, kMaxBlockSize>, Dim> near{};
     double bound = 1;
+    /// Whether every axis has the centred rows alone (no one-sided row near a bounded domain
+    /// edge): odd index i reads i + g + 2m - (order - 1), m < order, with the centred weights
+    /// below, and an even index itself. Most blocks; detail_maxima then takes a kernel with
+    /// these offsets fixed (DetailKernels.hpp).
+    bool centred = false;
+    std::array<double, kMaxPredictOrder> centred_weights{};
   };
   const DetailStencils& detail_stencils_of(const Key& key) const;
   const DetailStencils& block_detail_stencils(std::size_t slot) const;

@@ -1,0 +1,130 @@
+#include "wavelet/DetailKernels.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+
+// Each kernel is cloned for AVX2 and the baseline; `flatten` inlines the template into each
+// clone, so each is compiled for its instruction set as a whole (fluid/BlockKernels.cpp does
+// the same; no FMA in either clone, so both round alike).
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__SANITIZE_ADDRESS__)
+#define GRAINWAVE_KERNEL_CLONES __attribute__((target_clones("avx2", "default"), flatten))
+#else
+#define GRAINWAVE_KERNEL_CLONES
+#endif
+
+namespace grainwave::wavelet {
+
+namespace {
+
+template <int Dim, int kOrder>
+std::pair<double, double> centred_maxima(const double* u, const CentredRows<Dim>& rows, double* along_x,
+                                         double* last) {
+  // predict_array and detail_maxima in one: along x the prediction is taken at every index with
+  // the offsets fixed (a contiguous loop) and the evens then overwritten by their copies; along
+  // y (and z) each line of the previous stage is read at fixed line offsets; the last axis's
+  // predictions go straight into the maxima.
+  const auto ubs = static_cast<std::size_t>(rows.block_size), ug = static_cast<std::size_t>(rows.ghosts);
+  const std::size_t uw = ubs + 2 * ug;
+  std::array<double, kOrder> w{};
+  for (std::size_t m = 0; m < w.size(); ++m) w[m] = rows.weights[m];
+  // Odd index i reads i + g + 2m - (kOrder - 1): from `first` on, every other point.
+  const std::size_t first = ug - static_cast<std::size_t>(kOrder - 1);
+  const auto& near = rows.near;
+  std::array<double, kMaxBlockSize> all{}, inner{}, row_mask{};
+  for (std::size_t i = 0; i < ubs; ++i) row_mask[i] = near[0][i] ? 1.0 : 0.0;
+  // The maxima of |u - P u| along one line of bs values (lanes kept apart, selects: packed
+  // maxima; NaNs ignored as std::max over the coefficients would). The near maximum leaves out
+  // lines and lanes whose rows are not all near (selects, so an unread NaN cannot get through).
+  auto accumulate = [&](const double* u_line, const double* p, bool near_line) {
+    for (std::size_t i = 0; i < ubs; ++i) {
+      const double d = std::abs(u_line[i] - p[i]);
+      all[i] = d > all[i] ? d : all[i];
+      const double dn = near_line && row_mask[i] != 0.0 ? d : 0.0;
+      inner[i] = dn > inner[i] ? dn : inner[i];
+    }
+  };
+  auto predict_line = [&](const double* row, double* to) {
+    const double* at = row + first;
+    for (std::size_t i = 0; i < ubs; ++i) {
+      double sum = 0;
+      for (std::size_t m = 0; m < w.size(); ++m) sum += w[m] * at[i + 2 * m];
+      to[i] = sum;
+    }
+    for (std::size_t i = 0; i < ubs; i += 2) to[i] = 0.0 + row[ug + i];
+  };
+  // Lines later stages read: even array index + g on every axis beyond x (block starts are even).
+  auto even_line = [&](std::size_t r) { return (r + ug) % 2 == 0; };
+  if constexpr (Dim == 1) {
+    predict_line(u, along_x);
+    accumulate(u + ug, along_x, true);
+  } else {
+    std::size_t lines = 1;
+    for (int a = 1; a < Dim; ++a) lines *= uw;
+    for (std::size_t line = 0; line < lines; ++line) {
+      if (!even_line(line % uw)) continue;
+      if (Dim == 3 && !even_line(line / uw)) continue;
+      predict_line(u + line * uw, along_x + line * ubs);
+    }
+    // One line of `done` values along the next axis at index j, from the previous stage's lines
+    // of `done` values (`from`: array index 0 along that axis).
+    auto predict_across = [&](const double* from, std::size_t j, std::size_t done, double* to) {
+      if (j % 2 == 0) {
+        const double* src = from + (j + ug) * done;
+        for (std::size_t m = 0; m < done; ++m) to[m] = 0.0 + src[m];
+        return;
+      }
+      const double* src = from + (first + j) * done;
+      for (std::size_t m = 0; m < done; ++m) {
+        double sum = 0;
+        for (std::size_t k = 0; k < w.size(); ++k) sum += w[k] * src[2 * k * done + m];
+        to[m] = sum;
+      }
+    };
+    if constexpr (Dim == 2) {
+      for (std::size_t j = 0; j < ubs; ++j) {
+        predict_across(along_x, j, ubs, last);
+        accumulate(u + (j + ug) * uw + ug, last, near[1][j]);
+      }
+    } else {
+      // Along y on the x-predicted lines of even z (planes of bs^2 after `last`'s first bs^2),
+      // then along z straight into the maxima.
+      double* along_y = last + ubs * ubs;
+      for (std::size_t z = 0; z < uw; ++z) {
+        if (!even_line(z)) continue;
+        for (std::size_t j = 0; j < ubs; ++j)
+          predict_across(along_x + z * uw * ubs, j, ubs, along_y + (z * ubs + j) * ubs);
+      }
+      for (std::size_t k = 0; k < ubs; ++k) {
+        predict_across(along_y, k, ubs * ubs, last);
+        for (std::size_t j = 0; j < ubs; ++j)
+          accumulate(u + ((k + ug) * uw + j + ug) * uw + ug, last + j * ubs, near[1][j] && near[2][k]);
+      }
+    }
+  }
+  double largest = 0, largest_near = 0;
+  for (std::size_t i = 0; i < ubs; ++i) {
+    largest = std::max(largest, all[i]);
+    largest_near = std::max(largest_near, inner[i]);
+  }
+  return {largest, largest_near};
+}
+
+}  // namespace
+
+GRAINWAVE_KERNEL_CLONES std::pair<double, double> centred_detail_maxima(const double* u, const CentredRows<1>& rows,
+                                                                        double* along_x, double* last) {
+  return rows.order == 4 ? centred_maxima<1, 4>(u, rows, along_x, last) : centred_maxima<1, 6>(u, rows, along_x, last);
+}
+
+GRAINWAVE_KERNEL_CLONES std::pair<double, double> centred_detail_maxima(const double* u, const CentredRows<2>& rows,
+                                                                        double* along_x, double* last) {
+  return rows.order == 4 ? centred_maxima<2, 4>(u, rows, along_x, last) : centred_maxima<2, 6>(u, rows, along_x, last);
+}
+
+GRAINWAVE_KERNEL_CLONES std::pair<double, double> centred_detail_maxima(const double* u, const CentredRows<3>& rows,
+                                                                        double* along_x, double* last) {
+  return rows.order == 4 ? centred_maxima<3, 4>(u, rows, along_x, last) : centred_maxima<3, 6>(u, rows, along_x, last);
+}
+
+}  // namespace grainwave::wavelet
