@@ -61,7 +61,7 @@ void run_bed(benchmark::State& state, const std::string& tangential, const dem::
   for (auto _ : state) integrator.step(bed.store, field, dt);
   const double n = static_cast<double>(bed.store.size());
   state.counters["particles"] = n;
-  state.counters["contacts_per_particle"] = static_cast<double>(field.contacts().size()) / n;
+  state.counters["contacts_per_particle"] = static_cast<double>(field.contact_count()) / n;
   state.counters["particle_steps_per_s"] =
       benchmark::Counter(n * static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
   const double history_bytes =

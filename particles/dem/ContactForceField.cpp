@@ -1,6 +1,9 @@
 #include "particles/dem/ContactForceField.hpp"
 
 #include "core/Error.hpp"
+#include "particles/dem/HertzNormal.hpp"
+#include "particles/dem/LinearSpringDashpot.hpp"
+#include "particles/dem/StaticFriction.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -15,21 +18,12 @@ ContactForceField::ContactForceField(ContactModel model, const Domain& domain,
   plane_walls_ = walls_from_domain(domain_);
 }
 
-void ContactForceField::collect_particle_contacts(const ParticleStore& store) {
-  auto add = [&](std::uint32_t i, std::uint32_t j, const Vec3& d, double distance2) {
-    add_particle_contact(store, i, j, d, distance2);
-  };
-  if (settings_.verlet_skin > 0.0) verlet_.for_each_touching_pair(store, add);
-  else cells_.for_each_touching_pair(add);
-}
-
-void ContactForceField::add_particle_contact(const ParticleStore& store, std::uint32_t i,
-                                             std::uint32_t j, const Vec3& d, double distance2) {
+[[gnu::always_inline]] inline bool ContactForceField::particle_contact(const ParticleStore& store, std::uint32_t i, std::uint32_t j,
+                                         const Vec3& d, double distance2, Contact& c) const {
   const double inverse_mass_sum = inverse_mass_[i] + inverse_mass_[j];
-  if (inverse_mass_sum == 0.0 || distance2 == 0.0) return;  // fixed pairs never interact
+  if (inverse_mass_sum == 0.0 || distance2 == 0.0) return false;  // fixed pairs never interact
   const double distance = std::sqrt(distance2);
   const double ri = store.radius[i], rj = store.radius[j];
-  Contact& c = contacts_.emplace_back();
   c.i = i;
   c.partner = j;
   c.is_wall = false;
@@ -39,12 +33,13 @@ void ContactForceField::add_particle_contact(const ParticleStore& store, std::ui
   c.relative_velocity = (store.velocity[j] - store.velocity[i]) - spin.cross(c.normal);
   c.effective_mass = 1.0 / inverse_mass_sum;
   c.effective_radius = effective_radius(ri, rj);
+  c.history = nullptr;
+  return true;
 }
 
-void ContactForceField::add_wall_contact(const ParticleStore& store, std::size_t i,
-                                         std::size_t wall_index, const Vec3& wall_velocity,
-                                         const Vec3& normal, double overlap) {
-  Contact& c = contacts_.emplace_back();
+void ContactForceField::wall_contact(const ParticleStore& store, std::size_t i, std::size_t wall_index,
+                                     const Vec3& wall_velocity, const Vec3& normal, double overlap,
+                                     Contact& c) const {
   c.i = static_cast<std::uint32_t>(i);
   c.partner = static_cast<std::uint32_t>(wall_index);
   c.is_wall = true;
@@ -54,9 +49,48 @@ void ContactForceField::add_wall_contact(const ParticleStore& store, std::size_t
                         (store.radius[i] * store.angular_velocity[i]).cross(normal);
   c.effective_mass = store.mass[i];
   c.effective_radius = store.radius[i];
+  c.history = nullptr;
 }
 
-void ContactForceField::collect_wall_contacts(const ParticleStore& store) {
+void ContactForceField::external_forces(const ParticleStore& store) {
+  const std::size_t n = store.size();
+  force_.resize(n);
+  torque_.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    force_[i] = store.force[i] + store.mass[i] * settings_.gravity;
+    torque_[i] = store.torque[i];
+    for (const RecyclingDragZone& zone : settings_.drag_zones)
+      if (zone.contains(store.position[i]))
+        force_[i] += recycling_drag(zone.coefficient_per_mass, store.mass[i], store.velocity[i]);
+  }
+}
+
+[[gnu::always_inline]] inline void ContactForceField::apply(const ParticleStore& store, const Contact& c) {
+  const Vec3 on_i = c.tangential_force - c.normal_force * c.normal;
+  const Vec3 lever_cross_ft = c.normal.cross(c.tangential_force);
+  force_[c.i] += on_i;
+  torque_[c.i] += store.radius[c.i] * lever_cross_ft;
+  if (!c.is_wall) {
+    force_[c.partner] -= on_i;
+    torque_[c.partner] += store.radius[c.partner] * lever_cross_ft;
+  }
+}
+
+[[gnu::always_inline]] inline void ContactForceField::note_depth(const ParticleStore& store, const Contact& c) {
+  ++contact_count_;
+  const double r = c.is_wall ? store.radius[c.i] : std::min(store.radius[c.i], store.radius[c.partner]);
+  const double depth = c.overlap / r;
+  if (depth > deepest_.overlap_over_radius) deepest_ = DeepestContact{depth, c.i, c.partner, c.is_wall};
+}
+
+template <class ContactFunction>
+void ContactForceField::for_each_contact(const ParticleStore& store, ContactFunction&& f) {
+  Contact c;
+  auto pair = [&](std::uint32_t i, std::uint32_t j, const Vec3& d, double distance2) {
+    if (particle_contact(store, i, j, d, distance2, c)) f(c);
+  };
+  if (settings_.verlet_skin > 0.0) verlet_.for_each_touching_pair(store, pair);
+  else cells_.for_each_touching_pair(pair);
   const std::size_t n = store.size();
   for (std::size_t w = 0; w < plane_walls_.size(); ++w) {
     const PlaneWall& wall = plane_walls_[w];
@@ -65,7 +99,8 @@ void ContactForceField::collect_wall_contacts(const ParticleStore& store) {
       if (store.is_fixed(i)) continue;
       const double overlap = store.radius[i] - wall.distance(store.position[i]);
       if (overlap <= 0.0) continue;
-      add_wall_contact(store, i, w, wall.velocity, -wall.normal, overlap);
+      wall_contact(store, i, w, wall.velocity, -wall.normal, overlap, c);
+      f(c);
     }
   }
   for (std::size_t w = 0; w < finite_walls_.size(); ++w) {
@@ -79,10 +114,33 @@ void ContactForceField::collect_wall_contacts(const ParticleStore& store) {
       const double r = store.radius[i];
       if (distance2 >= r * r || distance2 == 0.0) continue;
       const double distance = std::sqrt(distance2);
-      add_wall_contact(store, i, plane_walls_.size() + w, wall.velocity, d / distance,
-                       r - distance);
+      wall_contact(store, i, plane_walls_.size() + w, wall.velocity, d / distance, r - distance, c);
+      f(c);
     }
   }
+}
+
+template <class Normal, class Tangential>
+void ContactForceField::evaluate_fused(const ParticleStore& store, const Normal& normal,
+                                       const Tangential& tangential) {
+  // The batched path adds the external forces first and then the contacts in list order, which
+  // is the order they are found in: the same sums in the same order here.
+  external_forces(store);
+  for_each_contact(store, [&](Contact& c) {
+    c.normal_force = normal.force(c);
+    c.tangential_force = tangential.force(c);
+    note_depth(store, c);
+    apply(store, c);
+  });
+}
+
+template <class Normal>
+bool ContactForceField::try_fused(const ParticleStore& store, const Normal& normal) {
+  if (const auto* friction = dynamic_cast<const StaticFriction*>(model_.tangential.get())) {
+    evaluate_fused(store, normal, *friction);
+    return true;
+  }
+  return false;
 }
 
 void ContactForceField::evaluate(const ParticleStore& store, HistoryStage stage, double dt) {
@@ -90,6 +148,8 @@ void ContactForceField::evaluate(const ParticleStore& store, HistoryStage stage,
   if (stage != HistoryStage::kCorrect) history_.begin_step();
 
   contacts_.clear();
+  contact_count_ = 0;
+  deepest_ = DeepestContact{};
   inverse_mass_.resize(n);
   for (std::size_t i = 0; i < n; ++i) inverse_mass_[i] = store.inverse_mass(i);
   if (n > 0) {
@@ -105,8 +165,13 @@ void ContactForceField::evaluate(const ParticleStore& store, HistoryStage stage,
       if (skin > 0.0) verlet_.build(store, domain_, cell_width, skin);
       else cells_.build(store, domain_, cell_width);
     }
-    collect_particle_contacts(store);
-    collect_wall_contacts(store);
+    if (settings_.fused && !model_.tangential->needs_history()) {
+      if (const auto* law = dynamic_cast<const LinearSpringDashpot*>(model_.normal.get()); law && try_fused(store, *law))
+        return;
+      if (const auto* law = dynamic_cast<const HertzNormal*>(model_.normal.get()); law && try_fused(store, *law))
+        return;
+    }
+    for_each_contact(store, [&](const Contact& c) { contacts_.push_back(c); });
   }
 
   if (model_.tangential->needs_history()) {
@@ -125,24 +190,10 @@ void ContactForceField::evaluate(const ParticleStore& store, HistoryStage stage,
   model_.normal->evaluate(contacts_);
   model_.tangential->evaluate(contacts_, stage, dt);
 
-  force_.resize(n);
-  torque_.resize(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    force_[i] = store.force[i] + store.mass[i] * settings_.gravity;
-    torque_[i] = store.torque[i];
-    for (const RecyclingDragZone& zone : settings_.drag_zones)
-      if (zone.contains(store.position[i]))
-        force_[i] += recycling_drag(zone.coefficient_per_mass, store.mass[i], store.velocity[i]);
-  }
+  external_forces(store);
   for (const Contact& c : contacts_) {
-    const Vec3 on_i = c.tangential_force - c.normal_force * c.normal;
-    const Vec3 lever_cross_ft = c.normal.cross(c.tangential_force);
-    force_[c.i] += on_i;
-    torque_[c.i] += store.radius[c.i] * lever_cross_ft;
-    if (!c.is_wall) {
-      force_[c.partner] -= on_i;
-      torque_[c.partner] += store.radius[c.partner] * lever_cross_ft;
-    }
+    note_depth(store, c);
+    apply(store, c);
   }
 }
 

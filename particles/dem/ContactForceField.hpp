@@ -48,6 +48,18 @@ struct ContactForceSettings {
   /// Verlet-list skin: 0 searches the cells at every evaluation; > 0 keeps the pairs closer
   /// than r_i + r_j + skin and searches again only after a particle moved skin/2.
   double verlet_skin = 0.0;
+  /// With a tangential law without history, each contact's forces are computed and added where
+  /// the pair is found, without a list of contacts (bitwise the same forces: the same
+  /// arithmetic, added in the same order). false keeps the list (contacts()) for every law.
+  bool fused = true;
+};
+
+/// The deepest contact of an evaluation, relative to the smaller radius (the wall's particle's
+/// radius for a wall).
+struct DeepestContact {
+  double overlap_over_radius = 0.0;
+  std::uint32_t i = 0, partner = 0;  ///< slots; partner is the wall index when is_wall
+  bool is_wall = false;
 };
 
 class ContactForceField {
@@ -66,19 +78,37 @@ class ContactForceField {
 
   const std::vector<Vec3>& force() const { return force_; }
   const std::vector<Vec3>& torque() const { return torque_; }
-  /// Contacts found by the last evaluation (particle pairs and wall contacts).
+  /// Contacts found by the last evaluation (particle pairs and wall contacts), when it kept the
+  /// list: always with a history law or settings().fused = false, otherwise empty.
   const std::vector<Contact>& contacts() const { return contacts_; }
+  /// How many contacts the last evaluation found, and the deepest (either way of evaluating).
+  std::size_t contact_count() const { return contact_count_; }
+  const DeepestContact& deepest_contact() const { return deepest_; }
   const ContactHistory& history() const { return history_; }
   ContactHistory& history() { return history_; }
   const VerletList& verlet_list() const { return verlet_; }
 
  private:
-  void collect_particle_contacts(const ParticleStore& store);
-  void add_particle_contact(const ParticleStore& store, std::uint32_t i, std::uint32_t j,
-                            const Vec3& d, double distance2);
-  void collect_wall_contacts(const ParticleStore& store);
-  void add_wall_contact(const ParticleStore& store, std::size_t i, std::size_t wall_index,
-                        const Vec3& wall_velocity, const Vec3& normal, double overlap);
+  /// Calls f(contact) for every touching particle pair, then for every wall contact, in a
+  /// fixed order; the contact's forces are not set yet.
+  template <class ContactFunction>
+  void for_each_contact(const ParticleStore& store, ContactFunction&& f);
+  /// The contact of i with particle j (d = x_j - x_i, |d|^2), false if they cannot interact.
+  bool particle_contact(const ParticleStore& store, std::uint32_t i, std::uint32_t j, const Vec3& d,
+                        double distance2, Contact& c) const;
+  void wall_contact(const ParticleStore& store, std::size_t i, std::size_t wall_index, const Vec3& wall_velocity,
+                    const Vec3& normal, double overlap, Contact& c) const;
+  /// force_ and torque_ from gravity, the stored external forces and the drag zones.
+  void external_forces(const ParticleStore& store);
+  /// Adds a contact's forces to force_ and torque_ of its particles.
+  void apply(const ParticleStore& store, const Contact& c);
+  void note_depth(const ParticleStore& store, const Contact& c);
+  /// One pass: every contact's forces computed and added where it is found (no history).
+  template <class Normal, class Tangential>
+  void evaluate_fused(const ParticleStore& store, const Normal& normal, const Tangential& tangential);
+  /// The fused pass for these laws if they are of known final types; false otherwise.
+  template <class Normal>
+  bool try_fused(const ParticleStore& store, const Normal& normal);
 
   ContactModel model_;
   Domain domain_;
@@ -89,6 +119,8 @@ class ContactForceField {
   VerletList verlet_;
   ContactHistory history_;
   std::vector<Contact> contacts_;
+  std::size_t contact_count_ = 0;
+  DeepestContact deepest_;
   std::vector<double> inverse_mass_;  ///< per slot, 0 for fixed particles
   std::vector<Vec3> force_;
   std::vector<Vec3> torque_;

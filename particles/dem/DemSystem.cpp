@@ -734,15 +734,12 @@ std::optional<std::string> DemSystem::check_state() const {
                          x.y(), x.z());
     }
   }
-  for (const Contact& c : field_->contacts()) {
-    const double r = c.is_wall ? store_.radius[c.i]
-                               : std::min(store_.radius[c.i], store_.radius[c.partner]);
-    if (c.overlap > max_overlap_ratio_ * r)
-      return fmt::format("particle id {} overlaps its {} by {:.3g} of a radius (limit {:.3g}): "
-                         "raise the stiffness or dem.steps_per_collision",
-                         store_.id[c.i], c.is_wall ? "wall" : "neighbour", c.overlap / r,
-                         max_overlap_ratio_);
-  }
+  const DeepestContact& c = field_->deepest_contact();
+  if (c.overlap_over_radius > max_overlap_ratio_)
+    return fmt::format("particle id {} overlaps its {} by {:.3g} of a radius (limit {:.3g}): "
+                       "raise the stiffness or dem.steps_per_collision",
+                       store_.id[c.i], c.is_wall ? "wall" : "neighbour", c.overlap_over_radius,
+                       max_overlap_ratio_);
   return std::nullopt;
 }
 
@@ -1009,7 +1006,7 @@ void DemSystem::report(io::Json& counts, io::Json& metrics, double step_wall_s, 
   counts.set("particles", mobile);
   counts.set("fixed_particles", static_cast<std::int64_t>(store_.size()) - mobile);
   counts.set("particles_removed", tally_.removed);
-  counts.set("contacts", static_cast<std::int64_t>(field_->contacts().size()));
+  counts.set("contacts", static_cast<std::int64_t>(field_->contact_count()));
   metrics.set("time_step", dt_);
   metrics.set("kinetic_energy", mobile_kinetic_energy());
   if (tally_.opened_at >= 0) metrics.set("gate_opened_at", tally_.opened_at);
@@ -1065,7 +1062,7 @@ std::size_t DemSystem::memory_bytes() const {
 }
 
 std::string DemSystem::progress_note() const {
-  return fmt::format("N {}  contacts {}{}", mobile_count(), field_->contacts().size(),
+  return fmt::format("N {}  contacts {}{}", mobile_count(), field_->contact_count(),
                      tally_.settling ? "  settling" : "");
 }
 

@@ -43,9 +43,11 @@ class HertzNormal final : public NormalLaw {
            damping_factor_ * std::sqrt(effective_mass * k) * root_quarter * normal_speed;
   }
 
+  double force(const Contact& c) const {
+    return force(c.overlap, c.normal_speed(), c.effective_mass, c.effective_radius);
+  }
   void evaluate(std::span<Contact> contacts) const override {
-    for (Contact& c : contacts)
-      c.normal_force = force(c.overlap, c.normal_speed(), c.effective_mass, c.effective_radius);
+    for (Contact& c : contacts) c.normal_force = force(c);
   }
   double contact_duration(double effective_mass, double effective_radius) const override;
 

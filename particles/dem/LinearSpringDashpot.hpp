@@ -29,8 +29,9 @@ class LinearSpringDashpot final : public NormalLaw {
     return stiffness_ * overlap - eta * normal_speed;
   }
 
+  double force(const Contact& c) const { return force(c.overlap, c.normal_speed(), c.effective_mass); }
   void evaluate(std::span<Contact> contacts) const override {
-    for (Contact& c : contacts) c.normal_force = force(c.overlap, c.normal_speed(), c.effective_mass);
+    for (Contact& c : contacts) c.normal_force = force(c);
   }
   double contact_duration(double effective_mass, double /*effective_radius*/) const override;
 

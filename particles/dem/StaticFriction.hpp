@@ -27,9 +27,12 @@ class StaticFriction final : public TangentialLaw {
     return (magnitude / std::max(speed, regularization_speed_)) * tangential_velocity;
   }
 
+  /// From the contact's normal force (written by the normal law).
+  Vec3 force(const Contact& c) const { return force(c.normal_force, c.tangential_velocity()); }
+
   bool needs_history() const override { return false; }
   void evaluate(std::span<Contact> contacts, HistoryStage, double) const override {
-    for (Contact& c : contacts) c.tangential_force = force(c.normal_force, c.tangential_velocity());
+    for (Contact& c : contacts) c.tangential_force = force(c);
   }
 
  private:

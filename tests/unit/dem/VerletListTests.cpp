@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <random>
+#include <string>
 
 namespace gw = grainwave::particles;
 namespace dem = grainwave::particles::dem;
@@ -21,7 +22,9 @@ TEST(VerletList, SameForcesAsCellSearchThroughoutAGranularGas) {
   dem::ContactForceSettings settings;
   settings.gravity = Vec3(0.0, -1.0, 0.0);
   dem::ContactForceField driver(model, domain, settings);
+  settings.fused = false;  // the list of contacts is read below
   dem::ContactForceField cells(model, domain, settings);
+  settings.fused = true;
   settings.verlet_skin = 0.2;
   dem::ContactForceField listed(model, domain, settings);
 
@@ -43,7 +46,7 @@ TEST(VerletList, SameForcesAsCellSearchThroughoutAGranularGas) {
     verlet.step(s, driver, dt);
     cells.evaluate(s, dem::HistoryStage::kSingle, dt);
     listed.evaluate(s, dem::HistoryStage::kSingle, dt);
-    ASSERT_EQ(cells.contacts().size(), listed.contacts().size()) << "step " << step;
+    ASSERT_EQ(cells.contacts().size(), listed.contact_count()) << "step " << step;
     contacts_seen += static_cast<long>(cells.contacts().size());
     // Contact forces summed in another order round differently: compare against the largest
     // single contact force, which sets the size of that rounding.
@@ -59,4 +62,63 @@ TEST(VerletList, SameForcesAsCellSearchThroughoutAGranularGas) {
   EXPECT_GT(contacts_seen, 1000);
   EXPECT_GT(listed.verlet_list().builds(), 1);
   EXPECT_LT(listed.verlet_list().builds(), steps / 5);
+}
+
+// The fused pass (forces computed where a contact is found, no list) against the list of
+// contacts and the batched laws: bitwise the same forces, torques, count and deepest contact,
+// for both normal laws, with walls and a finite wall segment, through a granular gas.
+TEST(ContactForceField, FusedPassEqualsTheListOfContactsBitwise) {
+  for (const char* normal : {"linear_spring_dashpot", "hertz"}) {
+    gw::Domain domain;
+    domain.hi = Vec3(5.0, 5.0, 5.0);
+    domain.face[1] = {gw::FaceKind::kWall, gw::FaceKind::kWall};
+    const dem::LawParameters normal_parameters =
+        std::string(normal) == "hertz"
+            ? dem::LawParameters{{"youngs_modulus", 1e5}, {"restitution", 0.8}, {"reference_velocity", 1.0}}
+            : dem::LawParameters{{"stiffness", 1e4}, {"restitution", 0.8}};
+    auto model = dem::make_contact_model(normal, normal_parameters, "static_friction",
+                                         {{"friction", 0.3}, {"regularization_speed", 1e-3}});
+    dem::ContactForceSettings settings;
+    settings.gravity = Vec3(0.0, -1.0, 0.0);
+    settings.verlet_skin = 0.2;
+    dem::ContactForceField fused(model, domain, settings);
+    settings.fused = false;
+    dem::ContactForceField listed(model, domain, settings);
+    // A tilted ledge across the box, 3 by 5.
+    const auto ledge = dem::FiniteWall::rectangle(Vec3(2.5, 1.25, 2.5), Vec3(3.0, 0.5, 0.0), Vec3::UnitZ(), 3.0, 5.0);
+    for (auto* field : {&fused, &listed}) field->finite_walls().push_back(ledge);
+
+    gw::ParticleStore s;
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    for (int k = 0; k < 300; ++k) {
+      const double r = 0.15 + 0.1 * u(rng);
+      s.add(k, Vec3(5 * u(rng), 0.3 + 4.4 * u(rng), 5 * u(rng)), Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5),
+            Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5), r, r * r * r, 0.4 * r * r * r * r * r);
+    }
+    dem::VelocityVerlet verlet;
+    const double dt = dem::stable_time_step(s, *model.normal, 50);
+    long contacts = 0, walls = 0;
+    for (int step = 0; step < 1500; ++step) {
+      verlet.step(s, fused, dt);
+      listed.evaluate(s, dem::HistoryStage::kSingle, dt);
+      fused.evaluate(s, dem::HistoryStage::kSingle, dt);
+      ASSERT_TRUE(fused.contacts().empty());
+      ASSERT_EQ(fused.contact_count(), listed.contacts().size()) << normal << " step " << step;
+      ASSERT_EQ(fused.contact_count(), listed.contact_count());
+      for (std::size_t i = 0; i < s.size(); ++i) {
+        ASSERT_EQ(fused.force()[i], listed.force()[i]) << normal << " step " << step << " particle " << i;
+        ASSERT_EQ(fused.torque()[i], listed.torque()[i]) << normal << " step " << step << " particle " << i;
+      }
+      const auto& a = fused.deepest_contact();
+      const auto& b = listed.deepest_contact();
+      ASSERT_EQ(a.overlap_over_radius, b.overlap_over_radius);
+      ASSERT_EQ(a.i, b.i);
+      ASSERT_EQ(a.partner, b.partner);
+      contacts += static_cast<long>(fused.contact_count());
+      for (const dem::Contact& c : listed.contacts()) walls += c.is_wall ? 1 : 0;
+    }
+    EXPECT_GT(contacts, 1000) << normal;
+    EXPECT_GT(walls, 10) << normal;  // the walls' contacts were compared too
+  }
 }
