@@ -793,44 +793,22 @@ void AdaptiveGrid<Dim>::block_details(int field, std::size_t slot, std::span<dou
 }
 
 template <int Dim>
+std::pair<double, double> AdaptiveGrid<Dim>::largest_details(int field, std::size_t slot) const {
+  return detail_maxima(block(field, slot).data(), block_detail_stencils(slot));
+}
+
+template <int Dim>
 std::pair<double, double> AdaptiveGrid<Dim>::detail_maxima(const double* u, const DetailStencils& stencils) const {
-  if (stencils.centred) {
-    // The stages' scratch: x-predicted lines, then (3D) y-predicted planes, then the last axis.
-    const auto ubs = static_cast<std::size_t>(config_.block_size);
-    const auto uw = ubs + 2 * static_cast<std::size_t>(layout_.ghosts);
-    std::size_t lines = 1;
-    for (int a = 1; a < Dim; ++a) lines *= uw;
-    stage_[0].resize(lines * ubs);
-    if constexpr (Dim >= 2) stage_[Dim - 1].resize(Dim == 2 ? ubs : uw * ubs * ubs + ubs * ubs);
-    const CentredRows<Dim> rows{config_.block_size, layout_.ghosts, config_.order, stencils.centred_weights, stencils.near};
-    return centred_detail_maxima(u, rows, stage_[0].data(), Dim >= 2 ? stage_[Dim - 1].data() : nullptr);
-  }
-  // As block_details, without storing them: lanes of |u - P u| kept apart (packed maxima; NaNs
-  // ignored, as std::max over the coefficients would). At all-even points u - P u is exactly 0
-  // (P is the identity there), so no point needs to be singled out. The near maximum leaves out
-  // lines and lanes whose rows are not all `near` (as selects: a product by 0 or 1 would let
-  // the NaN or Inf of an unread point through).
-  const double* predicted = predict_array(u, stencils);
+  // The stages' scratch: x-predicted lines, then (3D) y-predicted planes, then the last axis.
   const auto ubs = static_cast<std::size_t>(config_.block_size);
-  const auto& near = stencils.near;
-  std::array<double, kMaxBlockSize> all{}, inner{};
-  for_each_interior_line<Dim>(config_.block_size, layout_.ghosts, [&](std::size_t at, std::size_t p, std::size_t j, std::size_t k) {
-    bool near_line = true;
-    if constexpr (Dim >= 2) near_line = near[1][j];
-    if constexpr (Dim == 3) near_line = near_line && near[2][k];
-    for (std::size_t i = 0; i < ubs; ++i) {
-      const double d = std::abs(u[at + i] - predicted[p + i]);
-      all[i] = d > all[i] ? d : all[i];
-      const double dn = near_line && near[0][i] ? d : 0.0;
-      inner[i] = dn > inner[i] ? dn : inner[i];
-    }
-  });
-  double largest = 0, largest_near = 0;
-  for (std::size_t i = 0; i < ubs; ++i) {
-    largest = std::max(largest, all[i]);
-    largest_near = std::max(largest_near, inner[i]);
-  }
-  return {largest, largest_near};
+  const auto uw = ubs + 2 * static_cast<std::size_t>(layout_.ghosts);
+  std::size_t lines = 1;
+  for (int a = 1; a < Dim; ++a) lines *= uw;
+  stage_[0].resize(lines * ubs);
+  if constexpr (Dim >= 2) stage_[Dim - 1].resize(Dim == 2 ? ubs : uw * ubs * ubs + ubs * ubs);
+  const DetailRows<Dim> rows{config_.block_size, layout_.ghosts,   config_.order, stencils.centred_weights,
+                             stencils.centred,   stencils.axis,    stencils.near};
+  return block_detail_maxima(u, rows, stage_[0].data(), Dim >= 2 ? stage_[Dim - 1].data() : nullptr);
 }
 
 template <int Dim>
@@ -1340,10 +1318,10 @@ const typename AdaptiveGrid<Dim>::DetailStencils& AdaptiveGrid<Dim>::detail_sten
     }
     cached->bound *= widest;
   }
-  // Centred throughout? (The weights of the first odd row; every odd row must match them.)
+  // Which rows are centred (the weights of an odd point far from any edge: dd_line on a
+  // periodic line).
   const int order = config_.order;
-  cached->centred = true;
-  cached->centred_weights = cached->axis[0][1].w;
+  cached->centred_weights = dd_line(order, 2 * order + 1, 8 * order, true).weight;
   for (int a = 0; a < Dim; ++a)
     for (int i = 0; i < bs; ++i) {
       const AxisStencil& row = cached->axis[static_cast<std::size_t>(a)][static_cast<std::size_t>(i)];
@@ -1353,7 +1331,7 @@ const typename AdaptiveGrid<Dim>::DetailStencils& AdaptiveGrid<Dim>::detail_sten
         same = i % 2 == 0 ? row.at[ku] == i + g && row.w[ku] == 1.0
                           : row.at[ku] == i + g + 2 * k - (order - 1) && row.w[ku] == cached->centred_weights[ku];
       }
-      cached->centred = cached->centred && same;
+      cached->centred[static_cast<std::size_t>(a)][static_cast<std::size_t>(i)] = same;
     }
   return *cached;
 }

@@ -167,6 +167,10 @@ class AdaptiveGrid {
   /// Writes d (interior points, 0 at all-even ones) of a field of a block into `out`
   /// (Bs^Dim values, interior order).
   void block_details(int field, std::size_t slot, std::span<double> out) const;
+  /// Largest |d| of a field of a block, over all its interior points and over its `near` ones
+  /// (those whose prediction reads only what a family of children holds): what tagging
+  /// compares with the threshold, bitwise the maximum of block_details (ghosts must be filled).
+  std::pair<double, double> largest_details(int field, std::size_t slot) const;
   /// Global significance scale per field (1 for absolute, max |u| of the field's group).
   std::vector<double> field_scales(const ThresholdConfig& threshold) const;
   /// Global number of significant coefficients (ghosts must be filled).
@@ -245,11 +249,11 @@ class AdaptiveGrid {
     std::array<std::array<AxisStencil, kMaxBlockSize>, Dim> axis;
     std::array<std::array<bool, kMaxBlockSize>, Dim> near{};
     double bound = 1;
-    /// Whether every axis has the centred rows alone (no one-sided row near a bounded domain
-    /// edge): odd index i reads i + g + 2m - (order - 1), m < order, with the centred weights
-    /// below, and an even index itself. Most blocks; detail_maxima then takes a kernel with
-    /// these offsets fixed (DetailKernels.hpp).
-    bool centred = false;
+    /// Per axis and index, whether the row is a centred one: an odd index i reading
+    /// i + g + 2m - (order - 1), m < order, with the centred weights below, or an even index
+    /// itself. All but the odd rows near a bounded domain edge; detail_maxima computes these
+    /// with the offsets fixed (DetailKernels.hpp) and the others from their stencils.
+    std::array<std::array<bool, kMaxBlockSize>, Dim> centred{};
     std::array<double, kMaxPredictOrder> centred_weights{};
   };
   const DetailStencils& detail_stencils_of(const Key& key) const;

@@ -18,16 +18,21 @@ namespace grainwave::wavelet {
 namespace {
 
 template <int Dim, int kOrder>
-std::pair<double, double> centred_maxima(const double* u, const CentredRows<Dim>& rows, double* along_x,
-                                         double* last) {
+std::pair<double, double> maxima(const double* u, const DetailRows<Dim>& rows, double* along_x, double* last) {
   // predict_array and detail_maxima in one: along x the prediction is taken at every index with
-  // the offsets fixed (a contiguous loop) and the evens then overwritten by their copies; along
-  // y (and z) each line of the previous stage is read at fixed line offsets; the last axis's
-  // predictions go straight into the maxima.
+  // the centred offsets (a contiguous loop), then the evens are overwritten by their copies and
+  // the one-sided rows by their own sums; along y (and z) each line of the previous stage is
+  // read at the centred line offsets, or at the row's own; the last axis's predictions go
+  // straight into the maxima.
   const auto ubs = static_cast<std::size_t>(rows.block_size), ug = static_cast<std::size_t>(rows.ghosts);
   const std::size_t uw = ubs + 2 * ug;
   std::array<double, kOrder> w{};
-  for (std::size_t m = 0; m < w.size(); ++m) w[m] = rows.weights[m];
+  for (std::size_t m = 0; m < w.size(); ++m) w[m] = rows.centred_weights[m];
+  // The odd x indices whose rows are not centred (a few near a bounded edge, none elsewhere).
+  std::array<std::size_t, kMaxBlockSize> one_sided{};
+  std::size_t one_sided_count = 0;
+  for (std::size_t i = 0; i < ubs; ++i)
+    if (!rows.centred[0][i]) one_sided[one_sided_count++] = i;
   // Odd index i reads i + g + 2m - (kOrder - 1): from `first` on, every other point.
   const std::size_t first = ug - static_cast<std::size_t>(kOrder - 1);
   const auto& near = rows.near;
@@ -52,6 +57,12 @@ std::pair<double, double> centred_maxima(const double* u, const CentredRows<Dim>
       to[i] = sum;
     }
     for (std::size_t i = 0; i < ubs; i += 2) to[i] = 0.0 + row[ug + i];
+    for (std::size_t k = 0; k < one_sided_count; ++k) {
+      const AxisStencil& st = rows.axis[0][one_sided[k]];
+      double sum = 0;
+      for (int m = 0; m < st.size; ++m) sum += st.w[static_cast<std::size_t>(m)] * row[st.at[static_cast<std::size_t>(m)]];
+      to[one_sided[k]] = sum;
+    }
   };
   // Lines later stages read: even array index + g on every axis beyond x (block starts are even).
   auto even_line = [&](std::size_t r) { return (r + ug) % 2 == 0; };
@@ -66,9 +77,19 @@ std::pair<double, double> centred_maxima(const double* u, const CentredRows<Dim>
       if (Dim == 3 && !even_line(line / uw)) continue;
       predict_line(u + line * uw, along_x + line * ubs);
     }
-    // One line of `done` values along the next axis at index j, from the previous stage's lines
-    // of `done` values (`from`: array index 0 along that axis).
-    auto predict_across = [&](const double* from, std::size_t j, std::size_t done, double* to) {
+    // One line of `done` values along axis a at index j, from the previous stage's lines of
+    // `done` values (`from`: array index 0 along that axis).
+    auto predict_across = [&](std::size_t a, const double* from, std::size_t j, std::size_t done, double* to) {
+      if (!rows.centred[a][j]) {
+        const AxisStencil& st = rows.axis[a][j];
+        for (std::size_t m = 0; m < done; ++m) {
+          double sum = 0;
+          for (int k = 0; k < st.size; ++k)
+            sum += st.w[static_cast<std::size_t>(k)] * from[static_cast<std::size_t>(st.at[static_cast<std::size_t>(k)]) * done + m];
+          to[m] = sum;
+        }
+        return;
+      }
       if (j % 2 == 0) {
         const double* src = from + (j + ug) * done;
         for (std::size_t m = 0; m < done; ++m) to[m] = 0.0 + src[m];
@@ -83,7 +104,7 @@ std::pair<double, double> centred_maxima(const double* u, const CentredRows<Dim>
     };
     if constexpr (Dim == 2) {
       for (std::size_t j = 0; j < ubs; ++j) {
-        predict_across(along_x, j, ubs, last);
+        predict_across(1, along_x, j, ubs, last);
         accumulate(u + (j + ug) * uw + ug, last, near[1][j]);
       }
     } else {
@@ -93,10 +114,10 @@ std::pair<double, double> centred_maxima(const double* u, const CentredRows<Dim>
       for (std::size_t z = 0; z < uw; ++z) {
         if (!even_line(z)) continue;
         for (std::size_t j = 0; j < ubs; ++j)
-          predict_across(along_x + z * uw * ubs, j, ubs, along_y + (z * ubs + j) * ubs);
+          predict_across(1, along_x + z * uw * ubs, j, ubs, along_y + (z * ubs + j) * ubs);
       }
       for (std::size_t k = 0; k < ubs; ++k) {
-        predict_across(along_y, k, ubs * ubs, last);
+        predict_across(2, along_y, k, ubs * ubs, last);
         for (std::size_t j = 0; j < ubs; ++j)
           accumulate(u + ((k + ug) * uw + j + ug) * uw + ug, last + j * ubs, near[1][j] && near[2][k]);
       }
@@ -112,19 +133,19 @@ std::pair<double, double> centred_maxima(const double* u, const CentredRows<Dim>
 
 }  // namespace
 
-GRAINWAVE_KERNEL_CLONES std::pair<double, double> centred_detail_maxima(const double* u, const CentredRows<1>& rows,
-                                                                        double* along_x, double* last) {
-  return rows.order == 4 ? centred_maxima<1, 4>(u, rows, along_x, last) : centred_maxima<1, 6>(u, rows, along_x, last);
+GRAINWAVE_KERNEL_CLONES std::pair<double, double> block_detail_maxima(const double* u, const DetailRows<1>& rows,
+                                                                      double* along_x, double* last) {
+  return rows.order == 4 ? maxima<1, 4>(u, rows, along_x, last) : maxima<1, 6>(u, rows, along_x, last);
 }
 
-GRAINWAVE_KERNEL_CLONES std::pair<double, double> centred_detail_maxima(const double* u, const CentredRows<2>& rows,
-                                                                        double* along_x, double* last) {
-  return rows.order == 4 ? centred_maxima<2, 4>(u, rows, along_x, last) : centred_maxima<2, 6>(u, rows, along_x, last);
+GRAINWAVE_KERNEL_CLONES std::pair<double, double> block_detail_maxima(const double* u, const DetailRows<2>& rows,
+                                                                      double* along_x, double* last) {
+  return rows.order == 4 ? maxima<2, 4>(u, rows, along_x, last) : maxima<2, 6>(u, rows, along_x, last);
 }
 
-GRAINWAVE_KERNEL_CLONES std::pair<double, double> centred_detail_maxima(const double* u, const CentredRows<3>& rows,
-                                                                        double* along_x, double* last) {
-  return rows.order == 4 ? centred_maxima<3, 4>(u, rows, along_x, last) : centred_maxima<3, 6>(u, rows, along_x, last);
+GRAINWAVE_KERNEL_CLONES std::pair<double, double> block_detail_maxima(const double* u, const DetailRows<3>& rows,
+                                                                      double* along_x, double* last) {
+  return rows.order == 4 ? maxima<3, 4>(u, rows, along_x, last) : maxima<3, 6>(u, rows, along_x, last);
 }
 
 }  // namespace grainwave::wavelet
