@@ -7,8 +7,8 @@ namespace grainwave::particles::hardsphere {
 
 void EventCalendar::reset(std::span<const double> times) {
   const std::size_t n = times.size();
-  time_.assign(times.begin(), times.end());
-  link_.assign(n, Link{kNone, kNone, kInOverflow, 0});
+  link_.assign(n, Link{0.0, kNone, kNone, kInOverflow, 0});
+  for (std::size_t i = 0; i < n; ++i) link_[i].time = times[i];
   // About two particles per bucket (see rebuild()), over a revolution of 2N to 4N buckets.
   buckets_ = 8;
   while (static_cast<std::size_t>(buckets_) < 2 * n) buckets_ *= 2;
@@ -48,7 +48,7 @@ void EventCalendar::unlink(int i) {
 void EventCalendar::place(int i) {
   // s >= current_ + 1 and s < current_ + buckets_ make floor(s) a bucket of this revolution,
   // after the current one; NaN and +inf fail both tests and wait in the overflow.
-  const double s = (time_[static_cast<std::size_t>(i)] - origin_) / width_;
+  const double s = (link_[static_cast<std::size_t>(i)].time - origin_) / width_;
   const auto current = static_cast<double>(current_);
   if (s < current + 1.0) {
     heap_push(i);
@@ -62,7 +62,7 @@ void EventCalendar::place(int i) {
 void EventCalendar::update(int i, double time) {
   if (link_[static_cast<std::size_t>(i)].where == kInHeap) heap_remove(i);
   else unlink(i);
-  time_[static_cast<std::size_t>(i)] = time;
+  link_[static_cast<std::size_t>(i)].time = time;
   place(i);
 }
 
@@ -85,13 +85,13 @@ bool EventCalendar::advance() {
     const auto loaded = loaded_in_revolution_;
     loaded_in_revolution_ = 0;
     if (16 * loaded < buckets_ || loaded > 16 * static_cast<std::int64_t>(buckets_) ||
-        2 * in_overflow_ > static_cast<std::int64_t>(time_.size())) {
+        2 * in_overflow_ > static_cast<std::int64_t>(link_.size())) {
       ++rebuilds_;
       return rebuild();
     }
     for (int i = head_[static_cast<std::size_t>(buckets_)]; i != kNone;) {
       const int next = link_[static_cast<std::size_t>(i)].next;
-      const double s = (time_[static_cast<std::size_t>(i)] - origin_) / width_;
+      const double s = (link_[static_cast<std::size_t>(i)].time - origin_) / width_;
       if (s < static_cast<double>(current_ + buckets_)) {
         unlink(i);
         place(i);
@@ -116,7 +116,7 @@ bool EventCalendar::rebuild() {
   // half their number, so that a bucket holds about two times when they spread evenly (a
   // Poisson stream of events of mean spacing mean / n per particle gives the same).
   double earliest = INFINITY;
-  for (const double t : time_) earliest = std::isfinite(t) ? std::min(earliest, t) : earliest;
+  for (const Link& l : link_) earliest = std::isfinite(l.time) ? std::min(earliest, l.time) : earliest;
   std::fill(head_.begin(), head_.end(), kNone);
   heap_.clear();
   in_buckets_ = in_overflow_ = 0;
@@ -126,9 +126,9 @@ bool EventCalendar::rebuild() {
   if (any) {
     double spread = 0.0;
     std::size_t finite = 0;
-    for (const double t : time_) {
-      if (!std::isfinite(t)) continue;
-      spread += t - earliest;
+    for (const Link& l : link_) {
+      if (!std::isfinite(l.time)) continue;
+      spread += l.time - earliest;
       ++finite;
     }
     origin_ = earliest;
@@ -138,7 +138,7 @@ bool EventCalendar::rebuild() {
     // time; the floor keeps s = (t - origin) / width well inside the 53-bit range.
     width_ = std::max(width_, 1e-12 * std::max(1.0, std::abs(origin_)));
   }
-  for (int i = 0; i < static_cast<int>(time_.size()); ++i) place(i);
+  for (int i = 0; i < static_cast<int>(link_.size()); ++i) place(i);
   return any;
 }
 

@@ -34,9 +34,17 @@ class EventCalendar {
 
   /// The particle with the earliest time, or -1 if none has a finite one.
   int top();
-  double time(int i) const { return time_[static_cast<std::size_t>(i)]; }
+  /// A particle likely to come after top() (the runner-up in the current bucket, else the first
+  /// of the next bucket), or -1: a hint for prefetching its state, never needed for order.
+  int upcoming() const {
+    if (heap_.size() > 1) return heap_[1];
+    return heap_.empty() ? kNone : head_[static_cast<std::size_t>((current_ + 1) & (buckets_ - 1))];
+  }
+  /// Starts loading particle i's entry (it is about to be updated or popped).
+  void prefetch(int i) const { __builtin_prefetch(&link_[static_cast<std::size_t>(i)]); }
+  double time(int i) const { return link_[static_cast<std::size_t>(i)].time; }
 
-  std::size_t size() const { return time_.size(); }
+  std::size_t size() const { return link_.size(); }
   /// Rebuilds with a new bucket width so far (diagnostics and tests).
   long rebuilds() const { return rebuilds_; }
 
@@ -45,7 +53,10 @@ class EventCalendar {
   static constexpr int kInHeap = -1;      ///< where_ of a particle in the current bucket's heap
   static constexpr int kInOverflow = -2;  ///< where_ of a particle beyond the revolution
 
-  struct Link {
+  /// A particle's time and links, together: every operation on a particle reads both, and
+  /// for large N each particle touched is a cache miss.
+  struct alignas(32) Link {
+    double time;
     int next, prev;  ///< neighbours in the bucket or overflow list (kNone at the ends)
     int where;       ///< bucket index, kInHeap or kInOverflow
     int heap_slot;   ///< position in heap_ while where == kInHeap
@@ -56,7 +67,7 @@ class EventCalendar {
   void unlink(int i);
   void place(int i);  ///< into the heap, a bucket or the overflow, by its time
   bool before(int a, int b) const {
-    const double ta = time_[static_cast<std::size_t>(a)], tb = time_[static_cast<std::size_t>(b)];
+    const double ta = link_[static_cast<std::size_t>(a)].time, tb = link_[static_cast<std::size_t>(b)].time;
     return ta < tb || (ta == tb && a < b);
   }
   void heap_push(int i);
@@ -71,7 +82,6 @@ class EventCalendar {
   /// anew; false when no time is finite.
   bool rebuild();
 
-  HugePageVector<double> time_;
   HugePageVector<Link> link_;
   HugePageVector<int> head_;     ///< buckets_ bucket heads and the overflow head
   std::vector<int> heap_;     ///< the current bucket's particles, a binary min-heap
