@@ -710,7 +710,9 @@ const double* AdaptiveGrid<Dim>::predict_array(const double* u, const DetailSten
   // included), then along y from those values, then along z. These are the products and sums of
   // tensor_sum (x innermost, each partial sum started at 0 and accumulated in stencil order), so
   // every coefficient is bitwise the point-by-point one, but a tensor row is summed once per line
-  // instead of once per point that reads it (the adaptation's tagging was mostly this).
+  // instead of once per point that reads it. The general path, for block_details (all the
+  // coefficients); tagging needs only their maxima and takes DetailKernels.cpp, which the test
+  // LargestDetailsMatchBlockDetails holds to this path bitwise.
   const auto& st = stencils.axis;
   const int bs = config_.block_size, g = layout_.ghosts, width = bs + 2 * g;
   const auto ubs = static_cast<std::size_t>(bs), uw = static_cast<std::size_t>(width);

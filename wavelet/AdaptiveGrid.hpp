@@ -291,7 +291,7 @@ class AdaptiveGrid {
   mutable std::map<int, std::unique_ptr<DetailStencils>> detail_stencils_;
   /// The entry of detail_stencils_ of each local slot (cleared when the slots change).
   mutable std::vector<const DetailStencils*> slot_detail_stencils_;
-  mutable std::array<std::vector<double>, Dim> stage_;  // predict_array: partial predictions
+  mutable std::array<std::vector<double>, Dim> stage_;  // partial predictions (predict_array, detail_maxima)
   mutable std::vector<double> parent_array_;             // parent_significant: the assembled parent
   mutable std::vector<std::pair<int, std::ptrdiff_t>> parent_sources_;  // ... and where its points come from
   mutable std::vector<std::uint8_t> bound_rest_;  // block_significance: calls left without the range bound

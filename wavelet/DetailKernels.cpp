@@ -19,7 +19,7 @@ namespace {
 
 template <int Dim, int kOrder>
 std::pair<double, double> maxima(const double* u, const DetailRows<Dim>& rows, double* along_x, double* last) {
-  // predict_array and detail_maxima in one: along x the prediction is taken at every index with
+  // The prediction and the maxima in one pass: along x the prediction is taken at every index with
   // the centred offsets (a contiguous loop), then the evens are overwritten by their copies and
   // the one-sided rows by their own sums; along y (and z) each line of the previous stage is
   // read at the centred line offsets, or at the row's own; the last axis's predictions go
