@@ -24,7 +24,7 @@ namespace {
 template <int Dim, bool kViscous>
 void fluid_rhs_block(benchmark::State& state) {
   constexpr int kFields = Dim + 2;
-  const int bs = static_cast<int>(state.range(0)), g = kViscous ? gf::kViscousReach : gf::kStencilReach;
+  const int bs = static_cast<int>(state.range(0)), g = kViscous ? std::max(gf::kViscousReach, gf::kStencilReach) : gf::kStencilReach;
   const bool capturing = state.range(1) != 0;
   grainwave::wavelet::ArrayShape<Dim> shape;
   shape.extent.fill(bs + 2 * g);

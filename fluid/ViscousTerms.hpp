@@ -6,16 +6,21 @@
 // split by the structure of each term:
 //   - the "Laplacian" parts, d_j(mu d_j u_i) in the momentum, d_j(mu d_j |u|^2/2) (the work of
 //     those stresses) and the heat conduction d_j(mu d_j T), by the narrow 5-point 4th-order
-//     operator of narrow_diffusion below;
-//   - the rest, d_j(mu (d_i u_j - 2/3 delta_ij div u)) and its work, as the 4th-order central first
-//     derivative (SplitConvection.hpp) of fluxes built from 4th-order central gradients.
+//     operator of narrow_diffusion below; so also the part of the rest along its own axis,
+//     d_j(mu/3 d_j u_j) in the momentum j and d_j(mu/3 d_j u_j^2/2) in the energy (in tau_jj,
+//     mu (d_j u_j - 2/3 div u) = mu/3 d_j u_j - 2/3 mu sum_{k != j} d_k u_k);
+//   - the rest, d_j(mu (d_i u_j - 2/3 delta_ij sum_{k != j} d_k u_k)) for i != j or k != j, and
+//     its work, as the 4th-order central first derivative (SplitConvection.hpp) of fluxes built
+//     from 4th-order central gradients across the flux's axis.
 // Why the split: nested first derivatives are blind to the grid's odd-even (2h) mode, so a purely
 // nested discretisation leaves that mode undamped. A Brinkman-penalized wall (Penalization.hpp)
 // forces it, and the velocity profile next to the wall then zig-zags point to point. The narrow
 // operator damps the 2h mode at the physical rate. Both parts are in conservative form: on a
 // periodic uniform grid momentum and energy stay conserved to round-off (narrow_diffusion sums
-// to zero because its matrix is symmetric). The nested derivatives reach 4 points from each
-// interior point (kViscousReach ghost layers).
+// to zero because its matrix is symmetric). With every derivative along an axis taken once
+// along that axis (nested derivatives only across axes), the terms reach 2 points from each
+// interior point along an axis and 2 x 2 into the corners: kViscousReach ghost layers, fewer than
+// the convection's, so viscosity costs no wider ghost fill (nesting the diagonal rest reached 4).
 // Only built when a scene sets a Reynolds number: inviscid scenes never call these.
 #include <array>
 #include <cstddef>
@@ -25,7 +30,7 @@
 namespace grainwave::fluid {
 
 /// Ghost layers the viscous terms read.
-inline constexpr int kViscousReach = 4;
+inline constexpr int kViscousReach = 2;
 
 /// 4th-order central first derivative of f at array point i along a stride, times inv_h.
 inline double central_derivative(const double* f, std::ptrdiff_t i, std::ptrdiff_t stride, double inv_h) {
@@ -36,12 +41,18 @@ inline double central_derivative(const double* f, std::ptrdiff_t i, std::ptrdiff
 ///     1/2 [D2(mu f) - f D2(mu) + mu D2(f)] = 1/2 sum_k c_k (mu_k + mu_0)(f_k - f_0),
 /// D2 the 5-point 4th-order second derivative with weights c_k (so it is 4th order, reduces to
 /// mu D2 f for constant mu, and damps the 2h mode); inv_h2 = 1/h^2.
-inline double narrow_diffusion(const double* mu, const double* f, std::ptrdiff_t i, std::ptrdiff_t stride, double inv_h2) {
-  const double m0 = mu[i], f0 = f[i];
+/// f_of(k) gives f at array point k (a field computed on the fly).
+template <class F>
+inline double narrow_diffusion_of(const double* mu, F&& f_of, std::ptrdiff_t i, std::ptrdiff_t stride, double inv_h2) {
+  const double m0 = mu[i], f0 = f_of(i);
   auto pair = [&](std::ptrdiff_t k) {
-    return (mu[i + k] + m0) * (f[i + k] - f0) + (mu[i - k] + m0) * (f[i - k] - f0);
+    return (mu[i + k] + m0) * (f_of(i + k) - f0) + (mu[i - k] + m0) * (f_of(i - k) - f0);
   };
   return 0.5 * inv_h2 * ((4.0 / 3.0) * pair(stride) - (1.0 / 12.0) * pair(2 * stride));
+}
+
+inline double narrow_diffusion(const double* mu, const double* f, std::ptrdiff_t i, std::ptrdiff_t stride, double inv_h2) {
+  return narrow_diffusion_of(mu, [f](std::ptrdiff_t k) { return f[k]; }, i, stride, inv_h2);
 }
 
 /// The part of tau_ij that narrow_diffusion does not carry: mu (d_i u_j - 2/3 div u delta_ij),
@@ -79,7 +90,7 @@ struct ViscousSettings {
 /// Adds the viscous and heat-conduction terms of one block (its n^Dim interior points from array
 /// coordinate g on, g >= kViscousReach) to out (out[f * n^Dim + p], p the interior point number,
 /// x fastest; the density row is not touched). Also leaves the velocity gradients, T and mu at
-/// the interior points +- 2 in `block` (the force integrals read them). Loops over x-contiguous
+/// the interior points in `block` (the force integrals read them). Loops over x-contiguous
 /// rows (for_each_row) with every stencil at constant offsets: they vectorise whatever the
 /// derivative's axis.
 template <int Dim>
@@ -104,9 +115,8 @@ inline void add_block_viscous(const wavelet::ArrayShape<Dim>& shape, int g, int 
   hi.fill(g + n + 2);
   interior_lo.fill(g);
   interior_hi.fill(g + n);
-  // Gradients, T, mu and |u|^2 / 2 at the interior points +- 2 (what the fluxes' derivatives and
-  // the narrow operator read). The |u|^2 / 2 carries the work of the Laplacian stresses,
-  // d_j(mu d_j |u|^2/2) (ViscousTerms.hpp).
+  // T, mu and |u|^2 / 2 at the interior points +- 2 (what the narrow operator and the fluxes read).
+  // The |u|^2 / 2 carries the work of the Laplacian stresses, d_j(mu d_j |u|^2/2).
   for_each_row<Dim>(shape, lo, hi, [&](std::ptrdiff_t start, int length, const auto&) {
 #pragma GCC ivdep
     for (int x = 0; x < length; ++x) {
@@ -118,65 +128,82 @@ inline void add_block_viscous(const wavelet::ArrayShape<Dim>& shape, int g, int 
       for (std::size_t i = 0; i < static_cast<std::size_t>(Dim); ++i) k += u[i][at] * u[i][at];
       kinetic[at] = 0.5 * k;
     }
-    for (std::size_t a = 0; a < static_cast<std::size_t>(Dim); ++a) {
-      const double inv_h = 1 / h[a];
-      const std::ptrdiff_t stride = shape.stride(static_cast<int>(a));
+  });
+  // Gradients d_a u_i at the interior points, and +- 2 across axis a (the fluxes along the other
+  // axes read them there; along a itself no derivative is nested, so u is read 2 points out).
+  for (std::size_t a = 0; a < static_cast<std::size_t>(Dim); ++a) {
+    const double inv_h = 1 / h[a];
+    const std::ptrdiff_t stride = shape.stride(static_cast<int>(a));
+    auto across_lo = lo, across_hi = hi;
+    across_lo[a] = g;
+    across_hi[a] = g + n;
+    for_each_row<Dim>(shape, across_lo, across_hi, [&](std::ptrdiff_t start, int length, const auto&) {
       for (std::size_t i = 0; i < static_cast<std::size_t>(Dim); ++i) {
         const double* ui = u[i];
         double* gi = grad_of[i][a];
 #pragma GCC ivdep
         for (int x = 0; x < length; ++x) gi[start + x] = central_derivative(ui, start + x, stride, inv_h);
       }
-    }
-  });
+    });
+  }
   for (int j = 0; j < Dim; ++j) {
     const auto ju = static_cast<std::size_t>(j);
     const double inv_h = 1 / h[ju], inv_h2 = inv_h * inv_h;
     const std::ptrdiff_t stride = shape.stride(j);
-    // The rest of tau_ij and its work u_i tau_ij at the interior points +- 2 along j.
+    // The rest of tau_ij and its work u_i tau_ij at the interior points +- 2 along j, from the
+    // gradients across j only: mu d_i u_j (i != j) and -2/3 mu sum_{k != j} d_k u_k (i = j).
     auto flux_lo = interior_lo, flux_hi = interior_hi;
     flux_lo[ju] = g - 2;
     flux_hi[ju] = g + n + 2;
-    // mu (d_i u_j - 2/3 div u delta_ij) (viscous_stress_rest), from d_i u_j and the diagonal only.
     std::array<const double*, Dim> d_uj{}, diagonal{};
     for (std::size_t i = 0; i < static_cast<std::size_t>(Dim); ++i) {
       d_uj[i] = grad_of[ju][i];
       diagonal[i] = grad_of[i][i];
     }
-    for_each_row<Dim>(shape, flux_lo, flux_hi, [&](std::ptrdiff_t start, int length, const auto&) {
+    // (In 1D there is no rest: tau = 4/3 mu du/dx, all of it narrow.)
+    if constexpr (Dim > 1) {
+      for_each_row<Dim>(shape, flux_lo, flux_hi, [&](std::ptrdiff_t start, int length, const auto&) {
 #pragma GCC ivdep
-      for (int x = 0; x < length; ++x) {
-        const std::ptrdiff_t at = start + x;
-        double divergence = 0;
-        for (std::size_t k = 0; k < static_cast<std::size_t>(Dim); ++k) divergence += diagonal[k][at];
-        const double scale = inv_re * mu[at];
-        double work = 0;
-        for (std::size_t i = 0; i < static_cast<std::size_t>(Dim); ++i) {
-          const double rest = scale * (d_uj[i][at] - (i == ju ? 2.0 / 3.0 * divergence : 0.0));
-          flux[i][at] = rest;
-          work += u[i][at] * rest;
+        for (int x = 0; x < length; ++x) {
+          const std::ptrdiff_t at = start + x;
+          double across = 0;  // sum_{k != j} d_k u_k
+          for (std::size_t k = 0; k < static_cast<std::size_t>(Dim); ++k)
+            if (k != ju) across += diagonal[k][at];
+          const double scale = inv_re * mu[at];
+          double work = 0;
+          for (std::size_t i = 0; i < static_cast<std::size_t>(Dim); ++i) {
+            const double rest = scale * (i == ju ? -2.0 / 3.0 * across : d_uj[i][at]);
+            flux[i][at] = rest;
+            work += u[i][at] * rest;
+          }
+          flux[Dim][at] = work;
         }
-        flux[Dim][at] = work;
-      }
-    });
+      });
+    }
+    const double* uj = u[ju];
     for_each_row<Dim>(shape, interior_lo, interior_hi, [&](std::ptrdiff_t start, int length, const auto& first) {
       const std::size_t point = interior_point_number<Dim>(first, g, n);
-      for (std::size_t f = 0; f <= static_cast<std::size_t>(Dim); ++f) {
-        double* o = out + (f + 1) * per_block + point;
-        const double* fl = flux[f];
+      if constexpr (Dim > 1)
+        for (std::size_t f = 0; f <= static_cast<std::size_t>(Dim); ++f) {
+          double* o = out + (f + 1) * per_block + point;
+          const double* fl = flux[f];
 #pragma GCC ivdep
-        for (int x = 0; x < length; ++x) o[x] += central_derivative(fl, start + x, stride, inv_h);
-      }
+          for (int x = 0; x < length; ++x) o[x] += central_derivative(fl, start + x, stride, inv_h);
+        }
       for (std::size_t i = 0; i < static_cast<std::size_t>(Dim); ++i) {
+        // d_j(mu d_j u_i), and for i = j the 1/3 of tau_jj's own-axis part as well.
         double* o = out + (i + 1) * per_block + point;
         const double* ui = u[i];
+        const double weight = i == ju ? inv_re * (4.0 / 3.0) : inv_re;
 #pragma GCC ivdep
-        for (int x = 0; x < length; ++x) o[x] += inv_re * narrow_diffusion(mu, ui, start + x, stride, inv_h2);
+        for (int x = 0; x < length; ++x) o[x] += weight * narrow_diffusion(mu, ui, start + x, stride, inv_h2);
       }
+      // Energy: d_j(mu d_j (|u|^2/2 + u_j^2/6)), the work of those stresses, and the conduction.
       double* o = out + (Dim + 1) * per_block + point;
+      auto work_potential = [kinetic, uj](std::ptrdiff_t k) { return kinetic[k] + (1.0 / 6.0) * uj[k] * uj[k]; };
 #pragma GCC ivdep
       for (int x = 0; x < length; ++x)
-        o[x] += inv_re * narrow_diffusion(mu, kinetic, start + x, stride, inv_h2) +
+        o[x] += inv_re * narrow_diffusion_of(mu, work_potential, start + x, stride, inv_h2) +
                 conduction * narrow_diffusion(mu, temperature, start + x, stride, inv_h2);
     });
   }

@@ -1347,29 +1347,7 @@ const typename AdaptiveGrid<Dim>::DetailStencils& AdaptiveGrid<Dim>::block_detai
 
 template <int Dim>
 std::pair<double, double> AdaptiveGrid<Dim>::block_bounds(int field, std::size_t slot) const {
-  const double* u = data_[static_cast<std::size_t>(field)].data() + slot * block_volume_;
-  // Eight lanes each, written as selects so the compiler can use packed min/max.
-  constexpr std::size_t kLanes = 8;
-  std::array<double, kLanes> lo, hi;
-  lo.fill(u[0]);
-  hi.fill(u[0]);
-  std::size_t k = 0;
-  for (; k + kLanes <= block_volume_; k += kLanes)
-    for (std::size_t l = 0; l < kLanes; ++l) {
-      const double v = u[k + l];
-      lo[l] = v < lo[l] ? v : lo[l];
-      hi[l] = v > hi[l] ? v : hi[l];
-    }
-  for (; k < block_volume_; ++k) {
-    lo[0] = u[k] < lo[0] ? u[k] : lo[0];
-    hi[0] = u[k] > hi[0] ? u[k] : hi[0];
-  }
-  double low = lo[0], high = hi[0];
-  for (std::size_t l = 1; l < kLanes; ++l) {
-    low = std::min(low, lo[l]);
-    high = std::max(high, hi[l]);
-  }
-  return {low, high};
+  return value_range(data_[static_cast<std::size_t>(field)].data() + slot * block_volume_, block_volume_);
 }
 
 template <int Dim>

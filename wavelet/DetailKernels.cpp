@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <cstring>
 
 // Each kernel is cloned for AVX2 and the baseline; `flatten` inlines the template into each
 // clone, so each is compiled for its instruction set as a whole (fluid/BlockKernels.cpp does
@@ -132,6 +133,34 @@ std::pair<double, double> maxima(const double* u, const DetailRows<Dim>& rows, d
 }
 
 }  // namespace
+
+GRAINWAVE_KERNEL_CLONES std::pair<double, double> value_range(const double* u, std::size_t n) {
+  // Two groups of four lanes in GCC's vector types: the selects become packed min/max (left to
+  // the auto-vectoriser, the lanes stayed scalar). `v < lo ? v : lo` keeps lo where v is NaN.
+  typedef double Lanes __attribute__((vector_size(4 * sizeof(double))));
+  constexpr std::size_t kStep = 2 * 4;
+  Lanes lo0 = {u[0], u[0], u[0], u[0]}, hi0 = lo0, lo1 = lo0, hi1 = lo0;
+  std::size_t k = 0;
+  for (; k + kStep <= n; k += kStep) {
+    Lanes a, b;
+    std::memcpy(&a, u + k, sizeof a);
+    std::memcpy(&b, u + k + 4, sizeof b);
+    lo0 = a < lo0 ? a : lo0;
+    hi0 = a > hi0 ? a : hi0;
+    lo1 = b < lo1 ? b : lo1;
+    hi1 = b > hi1 ? b : hi1;
+  }
+  double low = u[0], high = u[0];
+  for (int l = 0; l < 4; ++l) {
+    low = std::min({low, lo0[l], lo1[l]});
+    high = std::max({high, hi0[l], hi1[l]});
+  }
+  for (; k < n; ++k) {
+    low = u[k] < low ? u[k] : low;
+    high = u[k] > high ? u[k] : high;
+  }
+  return {low, high};
+}
 
 GRAINWAVE_KERNEL_CLONES std::pair<double, double> block_detail_maxima(const double* u, const DetailRows<1>& rows,
                                                                       double* along_x, double* last) {

@@ -7,6 +7,7 @@
 // Every prediction is the sum AdaptiveGrid::predict_array forms (started at 0, accumulated in
 // stencil order, no FMA), so the maxima are bitwise those of its coefficients.
 #include <array>
+#include <cstddef>
 #include <utility>
 
 #include "wavelet/AdaptiveGrid.hpp"
@@ -34,5 +35,9 @@ struct DetailRows {
 std::pair<double, double> block_detail_maxima(const double* u, const DetailRows<1>& rows, double* along_x, double* last);
 std::pair<double, double> block_detail_maxima(const double* u, const DetailRows<2>& rows, double* along_x, double* last);
 std::pair<double, double> block_detail_maxima(const double* u, const DetailRows<3>& rows, double* along_x, double* last);
+
+/// Smallest and largest of u[0 .. n) (n >= 1; NaNs are passed over). The range bound of the
+/// tagging reads every value of a block array once per field, so it runs in packed lanes.
+std::pair<double, double> value_range(const double* u, std::size_t n);
 
 }  // namespace grainwave::wavelet
