@@ -119,6 +119,19 @@ void BM_BlockCoefficients(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(grid.global_blocks() * grid.points_per_block()));
 }
 
+// The tagging's kernel: the largest coefficient (and the largest near one) of every block, what
+// block_significance computes per field when the range bound decides nothing.
+template <int Dim>
+void BM_LargestDetails(benchmark::State& state) {
+  auto grid = disc_grid<Dim>(static_cast<int>(state.range(0)));
+  double sum = 0;
+  for (auto _ : state)
+    for (std::size_t s = 0; s < grid.local_blocks(); ++s) sum += grid.largest_details(0, s).first;
+  benchmark::DoNotOptimize(sum);
+  state.counters["blocks"] = static_cast<double>(grid.global_blocks());
+  state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(grid.global_blocks() * grid.points_per_block()));
+}
+
 template <int Dim>
 void BM_GhostFill(benchmark::State& state) {
   auto grid = disc_grid<Dim>(static_cast<int>(state.range(0)));
@@ -187,6 +200,8 @@ void BM_SettledAdaptCycle(benchmark::State& state) {
 
 BENCHMARK(BM_BlockCoefficients<2>)->ArgName("max_level")->Arg(4)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_BlockCoefficients<3>)->ArgName("max_level")->Arg(4)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_LargestDetails<2>)->ArgName("max_level")->Arg(4)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_LargestDetails<3>)->ArgName("max_level")->Arg(4)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_GhostFill<2>)->ArgName("max_level")->Arg(4)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_GhostFill<3>)->ArgName("max_level")->Arg(4)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_AdaptCycle<2>)->ArgName("max_level")->Arg(4)->Unit(benchmark::kMillisecond);

@@ -235,6 +235,7 @@ class AdaptiveGrid {
   std::vector<std::vector<double>> data_;  // per field: local blocks x block_volume_
   std::vector<std::vector<double>> spare_data_;  // the arrays of the previous adaptation (scratch, not copied)
   std::unique_ptr<GhostPlan> plan_;
+  std::unique_ptr<GhostPlan> spare_plan_;  ///< the plan the last rebuild replaced: storage for the next
   /// Drawn afresh (process-wide) whenever the ghost plan is built; copies share it, so an
   /// assignment between grids with the same layout copies only the field data.
   std::uint64_t layout_serial_ = 0;

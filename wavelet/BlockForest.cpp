@@ -167,6 +167,21 @@ bool BlockForest<Dim>::family_asks_to_coarsen(std::size_t i, std::span<const Ada
 
 template <int Dim>
 AdaptCounts BlockForest<Dim>::adapt(std::span<const AdaptTag> tags) {
+  std::vector<Key> next;
+  const AdaptCounts counts = adapted_leaves(tags, next);
+  if (counts.refined + counts.coarsened > 0) assign_leaves(std::move(next));
+  return counts;
+}
+
+template <int Dim>
+void BlockForest<Dim>::assign_leaves(std::vector<Key> next) {
+  leaves_ = std::move(next);
+  sort_and_index();
+}
+
+template <int Dim>
+AdaptCounts BlockForest<Dim>::adapted_leaves(std::span<const AdaptTag> tags, std::vector<Key>& next) const {
+  next.clear();
   if (tags.size() != leaves_.size())
     throw std::invalid_argument("BlockForest::adapt: " + std::to_string(tags.size()) + " tags for " +
                                 std::to_string(leaves_.size()) + " leaves");
@@ -217,7 +232,7 @@ AdaptCounts BlockForest<Dim>::adapt(std::span<const AdaptTag> tags) {
     ++counts.coarsened;
   }
 
-  std::vector<Key> next;
+  if (counts.coarsened == 0 && std::count(refine.begin(), refine.end(), 1) == 0) return counts;
   next.reserve(n + static_cast<std::size_t>(std::count(refine.begin(), refine.end(), 1)) * Key::kChildren);
   for (std::size_t i = 0; i < n; ++i) {
     if (refine[i]) {
@@ -229,8 +244,6 @@ AdaptCounts BlockForest<Dim>::adapt(std::span<const AdaptTag> tags) {
       next.push_back(leaves_[i]);
     }
   }
-  leaves_ = std::move(next);
-  sort_and_index();
   return counts;
 }
 

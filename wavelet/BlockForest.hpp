@@ -83,6 +83,11 @@ class BlockForest {
 
   /// Refine/coarsen by one tag per leaf (in leaves() order), then enforce 2:1 balance.
   AdaptCounts adapt(std::span<const AdaptTag> tags);
+  /// What adapt(tags) would do, without doing it: the counts, and the leaves after it in
+  /// `next` (unsorted; left empty when nothing would change).
+  AdaptCounts adapted_leaves(std::span<const AdaptTag> tags, std::vector<Key>& next) const;
+  /// Replaces the leaves by `next` (adapted_leaves' list).
+  void assign_leaves(std::vector<Key> next);
   /// Whether leaf i is child 0 of a family whose members are all leaves tagged kCoarsen (what
   /// a coarsening needs, before balance); their leaf indices go to `members` if given.
   bool family_asks_to_coarsen(std::size_t i, std::span<const AdaptTag> tags,
