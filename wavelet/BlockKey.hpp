@@ -28,17 +28,53 @@ struct BlockKey {
 
   static constexpr BlockKey from_coords(int level, const std::array<std::uint32_t, Dim>& c) {
     BlockKey key{level, 0};
-    for (int b = 0; b < kBitsPerAxis; ++b)
-      for (int a = 0; a < Dim; ++a)
-        key.morton |= static_cast<std::uint64_t>((c[static_cast<std::size_t>(a)] >> b) & 1u) << (b * Dim + a);
+    for (int a = 0; a < Dim; ++a) key.morton |= spread(c[static_cast<std::size_t>(a)]) << a;
     return key;
   }
   constexpr std::array<std::uint32_t, Dim> coords() const {
     std::array<std::uint32_t, Dim> c{};
-    for (int b = 0; b < kBitsPerAxis; ++b)
-      for (int a = 0; a < Dim; ++a)
-        c[static_cast<std::size_t>(a)] |= static_cast<std::uint32_t>((morton >> (b * Dim + a)) & 1u) << b;
+    for (int a = 0; a < Dim; ++a) c[static_cast<std::size_t>(a)] = compact(morton >> a);
     return c;
+  }
+  /// Bit b of v moved to bit b * Dim (the low kBitsPerAxis bits), and back: the interleave by
+  /// shifts and masks instead of bit by bit (the bit loops were 6% of a moving grid's adaptation).
+  static constexpr std::uint64_t spread(std::uint32_t v) {
+    std::uint64_t x = v;
+    if constexpr (Dim == 2) {
+      x = (x | x << 16) & 0x0000FFFF0000FFFFull;
+      x = (x | x << 8) & 0x00FF00FF00FF00FFull;
+      x = (x | x << 4) & 0x0F0F0F0F0F0F0F0Full;
+      x = (x | x << 2) & 0x3333333333333333ull;
+      x = (x | x << 1) & 0x5555555555555555ull;
+    } else if constexpr (Dim == 3) {
+      x &= 0x1FFFFFull;
+      x = (x | x << 32) & 0x001F00000000FFFFull;
+      x = (x | x << 16) & 0x001F0000FF0000FFull;
+      x = (x | x << 8) & 0x100F00F00F00F00Full;
+      x = (x | x << 4) & 0x10C30C30C30C30C3ull;
+      x = (x | x << 2) & 0x1249249249249249ull;
+    }
+    return x;
+  }
+  static constexpr std::uint32_t compact(std::uint64_t x) {
+    if constexpr (Dim == 2) {
+      x &= 0x5555555555555555ull;
+      x = (x | x >> 1) & 0x3333333333333333ull;
+      x = (x | x >> 2) & 0x0F0F0F0F0F0F0F0Full;
+      x = (x | x >> 4) & 0x00FF00FF00FF00FFull;
+      x = (x | x >> 8) & 0x0000FFFF0000FFFFull;
+      x = (x | x >> 16) & 0x00000000FFFFFFFFull;
+    } else if constexpr (Dim == 3) {
+      x &= 0x1249249249249249ull;
+      x = (x | x >> 2) & 0x10C30C30C30C30C3ull;
+      x = (x | x >> 4) & 0x100F00F00F00F00Full;
+      x = (x | x >> 8) & 0x001F0000FF0000FFull;
+      x = (x | x >> 16) & 0x001F00000000FFFFull;
+      x = (x | x >> 32) & 0x1FFFFFull;
+    } else {
+      x &= 0xFFFFFFFFull;
+    }
+    return static_cast<std::uint32_t>(x);
   }
   constexpr BlockKey parent() const { return {level - 1, morton >> Dim}; }
   constexpr BlockKey child(int k) const { return {level + 1, (morton << Dim) | static_cast<std::uint64_t>(k)}; }

@@ -28,6 +28,30 @@ TEST(BlockKey, MortonRoundTripParentAndChildren) {
   }
 }
 
+// The interleave by masks against the definition, bit b of axis a at bit b * Dim + a.
+template <int Dim>
+void expect_interleave_matches_bit_by_bit() {
+  using Key = gw::BlockKey<Dim>;
+  std::mt19937_64 random(7);
+  for (int trial = 0; trial < 2000; ++trial) {
+    std::array<std::uint32_t, Dim> c{};
+    for (auto& v : c) v = static_cast<std::uint32_t>(random()) >> (32 - Key::kBitsPerAxis);
+    std::uint64_t morton = 0;
+    for (int b = 0; b < Key::kBitsPerAxis; ++b)
+      for (int a = 0; a < Dim; ++a)
+        morton |= static_cast<std::uint64_t>((c[static_cast<std::size_t>(a)] >> b) & 1u) << (b * Dim + a);
+    const Key key = Key::from_coords(3, c);
+    ASSERT_EQ(key.morton, morton) << "trial " << trial;
+    ASSERT_EQ(key.coords(), c) << "trial " << trial;
+  }
+}
+
+TEST(BlockKey, InterleaveMatchesBitByBit) {
+  expect_interleave_matches_bit_by_bit<1>();
+  expect_interleave_matches_bit_by_bit<2>();
+  expect_interleave_matches_bit_by_bit<3>();
+}
+
 template <int Dim>
 void expect_hilbert_walks_face_neighbours(int bits) {
   const std::uint32_t n = 1u << bits;
