@@ -831,22 +831,11 @@ std::vector<double> AdaptiveGrid<Dim>::field_scales(const ThresholdConfig& th) c
   std::vector<double> scale(F, 1.0);
   if (th.normalisation == Normalisation::kAbsolute) return scale;
   std::vector<double> local(F, 0.0), global(F, 0.0);
-  // Interior lines along x, each bs contiguous values (max is exact: any order gives the same).
-  const auto ubs = static_cast<std::size_t>(config_.block_size);
+  // Max is exact: any order gives the same.
   for (std::size_t f = 0; f < F; ++f)
-    for (std::size_t s = 0; s < local_blocks(); ++s) {
-      const double* u = data_[f].data() + s * block_volume_;
-      // Lanes of a line kept apart and written as selects: packed max instructions, no chain
-      // through one accumulator (NaNs ignored, as std::max over the points would).
-      std::array<double, kMaxBlockSize> m{};
-      for_each_interior_line<Dim>(config_.block_size, layout_.ghosts, [&](std::size_t at, std::size_t, std::size_t, std::size_t) {
-        for (std::size_t i = 0; i < ubs; ++i) {
-          const double v = std::abs(u[at + i]);
-          m[i] = v > m[i] ? v : m[i];
-        }
-      });
-      for (std::size_t i = 0; i < ubs; ++i) local[f] = std::max(local[f], m[i]);
-    }
+    for (std::size_t s = 0; s < local_blocks(); ++s)
+      local[f] = std::max(local[f], interior_largest_magnitude(data_[f].data() + s * block_volume_, Dim,
+                                                               config_.block_size, layout_.ghosts));
   MPI_Allreduce(local.data(), global.data(), static_cast<int>(F), MPI_DOUBLE, MPI_MAX, comm_);
   for (std::size_t f = 0; f < F; ++f) {
     double m = global[f];

@@ -162,6 +162,31 @@ GRAINWAVE_KERNEL_CLONES std::pair<double, double> value_range(const double* u, s
   return {low, high};
 }
 
+GRAINWAVE_KERNEL_CLONES double interior_largest_magnitude(const double* u, int dim, int bs, int g) {
+  typedef double Lanes __attribute__((vector_size(4 * sizeof(double))));
+  const auto ubs = static_cast<std::size_t>(bs), ug = static_cast<std::size_t>(g), uw = ubs + 2 * ug;
+  const std::size_t planes = dim == 3 ? ubs : 1, lines = dim >= 2 ? ubs : 1;
+  Lanes top = {0, 0, 0, 0};
+  double largest = 0;
+  for (std::size_t k = 0; k < planes; ++k)
+    for (std::size_t j = 0; j < lines; ++j) {
+      const double* row = u + ((dim == 3 ? (k + ug) * uw : 0) + (dim >= 2 ? j + ug : 0)) * uw + ug;
+      std::size_t i = 0;
+      for (; i + 4 <= ubs; i += 4) {
+        Lanes v;
+        std::memcpy(&v, row + i, sizeof v);
+        v = v < 0 ? -v : v;
+        top = v > top ? v : top;  // NaN lanes keep the old value
+      }
+      for (; i < ubs; ++i) {
+        const double v = std::abs(row[i]);
+        largest = v > largest ? v : largest;
+      }
+    }
+  for (int l = 0; l < 4; ++l) largest = top[l] > largest ? top[l] : largest;
+  return largest;
+}
+
 GRAINWAVE_KERNEL_CLONES std::pair<double, double> block_detail_maxima(const double* u, const DetailRows<1>& rows,
                                                                       double* along_x, double* last) {
   return rows.order == 4 ? maxima<1, 4>(u, rows, along_x, last) : maxima<1, 6>(u, rows, along_x, last);

@@ -40,4 +40,8 @@ std::pair<double, double> block_detail_maxima(const double* u, const DetailRows<
 /// tagging reads every value of a block array once per field, so it runs in packed lanes.
 std::pair<double, double> value_range(const double* u, std::size_t n);
 
+/// Largest |u| over the interior points of a block array of `dim` axes, bs interior points and
+/// g ghost layers per side along each (0 if all are NaN): the linf scale of the threshold.
+double interior_largest_magnitude(const double* u, int dim, int bs, int g);
+
 }  // namespace grainwave::wavelet
