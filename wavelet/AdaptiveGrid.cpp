@@ -291,11 +291,14 @@ struct PointResolver {
   /// hit is remembered: consecutive ghost points mostly fall into the same block.
   std::size_t leaf_containing(int level, const std::array<GlobalIndex64, Dim>& idx) const {
     if (last_level >= 0) {
+      // A range test, not a division (64-bit divisions by the block size dominated the rebuild:
+      // a coarse-fine ghost resolves up to 36 points in 2D, each tested here).
       bool same = true;
       for (int a = 0; a < Dim && same; ++a) {
         const auto au = static_cast<std::size_t>(a);
         const GlobalIndex64 at = last_level >= level ? idx[au] << (last_level - level) : idx[au] >> (level - last_level);
-        same = static_cast<std::uint32_t>(at / config.block_size) == last_coords[au];
+        const GlobalIndex64 offset = at - last_first[au];
+        same = offset >= 0 && offset < config.block_size;
       }
       if (same) return last_leaf;
     }
@@ -311,6 +314,8 @@ struct PointResolver {
       if (const auto found = forest.find(morton_key<Dim>(l, c))) {
         last_level = l;
         last_coords = c;
+        for (int a = 0; a < Dim; ++a)
+          last_first[static_cast<std::size_t>(a)] = static_cast<GlobalIndex64>(c[static_cast<std::size_t>(a)]) * config.block_size;
         last_leaf = *found;
         // Consecutive lookups mostly find the same few leaves: skip repeats of the last one.
         if (found_keys && (found_keys->empty() || found_keys->back() != forest.leaves()[*found]))
@@ -322,6 +327,7 @@ struct PointResolver {
   }
   mutable int last_level = -1;
   mutable std::array<std::uint32_t, Dim> last_coords{};
+  mutable std::array<GlobalIndex64, Dim> last_first{};  ///< last_coords * block_size
   mutable std::size_t last_leaf = 0;
   /// When set, every leaf found by a lookup (not by the remembered hit) is appended: with the
   /// remembered hit forgotten before each block, these are all the leaves its ghosts read.
@@ -365,7 +371,10 @@ struct PointResolver {
         const auto au = static_cast<std::size_t>(a);
         const GlobalIndex64 n = points_along(a, level);
         GlobalIndex64 e = st[au].even[static_cast<std::size_t>(k[au])];
-        e = ((e % n) + n) % n;  // periodic images (non-periodic stencils stay inside)
+        // Periodic images (non-periodic stencils stay inside); a stencil reaches less than a
+        // block beyond the domain, so this wraps once, without a division.
+        while (e < 0) e += n;
+        while (e >= n) e -= n;
         coarse[au] = e / 2;
         w *= st[au].weight[static_cast<std::size_t>(k[au])];
       }
