@@ -363,6 +363,7 @@ FluidModel<Dim>::FluidModel(const Scene& scene) {
   adaptive_ = s.flag("adaptive");
   adapt_every_ = static_cast<int>(s.integer("adapt_every"));
   threshold_.epsilon = s.real("epsilon");
+  threshold_.coarsen_fraction = s.real("coarsen_fraction");
   threshold_.normalisation =
       s.text("normalisation") == "absolute" ? wavelet::Normalisation::kAbsolute : wavelet::Normalisation::kLinf;
   threshold_.groups.assign(static_cast<std::size_t>(kFields), 1);  // momentum components share a scale
@@ -1999,6 +2000,11 @@ void FluidSystem::declare(SceneSchema& schema) {
   s.flag("adaptive", true, "adapt the grid (false: uniform at max_level)");
   s.integer("adapt_every", 1, "steps between adaptations").at_least(1);
   s.real("epsilon", 1e-3, "wavelet threshold on the conserved variables").above(0).below(1);
+  s.real("coarsen_fraction", 1.0,
+         "hysteresis: blocks coarsen only where every coefficient is below coarsen_fraction * epsilon (refining "
+         "takes epsilon), so blocks near the threshold stop flickering between levels in a steady flow")
+      .above(0)
+      .at_most(1);
   s.text("normalisation", "linf", "threshold scale: linf (global max of rho, |rho u|, E) or absolute")
       .one_of({"linf", "absolute"});
   s.real("gamma", 1.4, "ratio of specific heats").above(1);

@@ -909,7 +909,7 @@ void AdaptiveGrid<Dim>::gather_leaf_flags(std::span<const char> local, std::span
 
 template <int Dim>
 std::pair<bool, bool> AdaptiveGrid<Dim>::block_significance(std::size_t slot, const ThresholdConfig& th,
-                                                            std::span<const double> scale) const {
+                                                            std::span<const double> scale, double any_fraction) const {
   bool any = false, near = false, bound_decided = false;
   // Where the range bound decided nothing last time (every field's coefficients were computed),
   // it is not tried for the next few calls: it rarely decides sooner on such a block, and costs
@@ -920,19 +920,20 @@ std::pair<bool, bool> AdaptiveGrid<Dim>::block_significance(std::size_t slot, co
   for (int f = 0; f < fields() && !(any && near); ++f) {
     if (!th.groups.empty() && th.groups[static_cast<std::size_t>(f)] < 0) continue;
     const double threshold = th.epsilon * scale[static_cast<std::size_t>(f)];
+    const double threshold_any = any_fraction * threshold;
     // A block whose whole range of values bounds every coefficient below the threshold is
     // insignificant without computing them (most of a far field). The margin covers the
     // rounding of the computed coefficients, so no decision differs from computing them.
     if (try_bound) {
       const auto [low, high] = block_bounds(f, slot);
       const double rounding = 1e-12 * std::max(std::abs(low), std::abs(high));
-      if (block_detail_stencils(slot).bound * (high - low) * (1 + 1e-12) + rounding < threshold) {
+      if (block_detail_stencils(slot).bound * (high - low) * (1 + 1e-12) + rounding < std::min(threshold, threshold_any)) {
         bound_decided = true;
         continue;
       }
     }
     const auto [largest, largest_near] = detail_maxima(block(f, slot).data(), block_detail_stencils(slot));
-    any = any || largest > threshold;
+    any = any || largest > threshold_any;
     near = near || largest_near > threshold;
   }
   if (try_bound && !bound_decided) bound_rest_[slot] = 8;
@@ -1067,7 +1068,8 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_pass(const ThresholdConfig& th, AdaptPass p
     for (std::size_t s = 0; s < local_blocks(); ++s) {
       const bool now = needed[first_leaf_ + s] != 0, later = share && needed_later[first_leaf_ + s] != 0;
       if (!now && !later) continue;
-      const auto [any, near] = block_significance(s, th, scale);
+      const auto [any, near] =
+          block_significance(s, th, scale, pass == AdaptPass::kCoarsen ? th.coarsen_fraction : 1.0);
       local_sig[s] = cycle && pass == AdaptPass::kRefine ? near : now && any;
       if (later) local_near[s] = near;
     }

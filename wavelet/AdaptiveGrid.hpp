@@ -101,6 +101,11 @@ struct ThresholdConfig {
   /// its own group. Fields in group -1 do not take part in the significance test.
   std::vector<int> groups;
   bool adjacent_blocks = true;  ///< adjacent zone in space: neighbours of significant blocks
+  /// Hysteresis: a coarsen pass keeps a block whose coefficients exceed coarsen_fraction *
+  /// epsilon (refining still takes epsilon). Below 1, a block whose coefficients hover near the
+  /// threshold stays put instead of being coarsened and refined again and again, each time
+  /// perturbing the solution by up to epsilon; 1: one threshold for both.
+  double coarsen_fraction = 1.0;
 };
 
 /// Region whose blocks must sit at max_level (e.g. a penalization interface): called with the
@@ -271,10 +276,11 @@ class AdaptiveGrid {
   /// ghosts alone: the refine pass refines exactly such a parent, so the coarsen pass keeps the
   /// family instead of coarsening it only to see it refined again before the next step.
   bool parent_significant(const Key& parent, const ThresholdConfig& th, std::span<const double> scale) const;
-  /// Whether a local block holds a significant point (any field above its threshold), and
-  /// whether it holds one among its near points.
+  /// Whether a local block holds a significant point (any field above any_fraction times its
+  /// threshold: coarsen_fraction in a coarsen pass), and whether it holds one among its near
+  /// points (above the threshold itself: what the refine pass refines).
   std::pair<bool, bool> block_significance(std::size_t slot, const ThresholdConfig& th,
-                                           std::span<const double> scale) const;
+                                           std::span<const double> scale, double any_fraction) const;
   /// One adaptation pass, alone or as part of adapt_cycle (refine_sig: the refine pass's
   /// significance, computed by the coarsen pass, used by the refine pass).
   AdaptCounts adapt_pass(const ThresholdConfig& th, AdaptPass pass, const ForcedRegion<Dim>& forced, bool cycle,

@@ -567,3 +567,37 @@ TEST(AdaptiveGrid, LargestDetailsMatchBlockDetails2D) {
 TEST(AdaptiveGrid, LargestDetailsMatchBlockDetails3D) {
   for (const int order : {4, 6}) largest_details_match_block_details<3>(false, order);
 }
+
+// Hysteresis: with coarsen_fraction c < 1 a coarsen pass keeps every block whose largest
+// coefficient lies above c * epsilon, blocks that a single threshold (c = 1) coarsens.
+TEST(AdaptiveGrid, CoarsenFractionKeepsBlocksInTheHysteresisBand) {
+  constexpr double kTwoPi = 2 * std::numbers::pi;
+  auto sample = [&](const auto& x, std::span<double> v) {
+    v[0] = std::sin(kTwoPi * x[0]) * std::sin(2 * kTwoPi * x[1]) + 0.3 * std::cos(3 * kTwoPi * x[0]);
+    v[1] = 0;
+  };
+  gw::AdaptiveGrid<2> fine(unit_box<2>(true, 0, 3));
+  fine.refine_to_uniform();
+  fine.sample(sample);
+  fine.fill_ghosts();
+  double largest = 0;
+  for (std::size_t s = 0; s < fine.local_blocks(); ++s) largest = std::max(largest, fine.largest_details(0, s).first);
+  largest = global_max(largest);
+  ASSERT_GT(largest, 0);
+  gw::ThresholdConfig th;
+  th.normalisation = gw::Normalisation::kAbsolute;
+  th.epsilon = 1.2 * largest;  // every block below epsilon: one threshold coarsens them all
+  const double fraction = 0.5;
+  std::vector<gw::BlockKey<2>> in_band;  // above fraction * epsilon: kept by the hysteresis
+  for (std::size_t s = 0; s < fine.local_blocks(); ++s)
+    if (fine.largest_details(0, s).first > fraction * th.epsilon) in_band.push_back(fine.key(s));
+  ASSERT_GT(global_sum(static_cast<std::int64_t>(in_band.size())), 0);
+
+  gw::AdaptiveGrid<2> single(fine), hysteresis(fine);
+  single.adapt(th, gw::AdaptPass::kCoarsen);
+  th.coarsen_fraction = fraction;
+  hysteresis.adapt(th, gw::AdaptPass::kCoarsen);
+  EXPECT_LT(single.global_blocks(), fine.global_blocks());
+  EXPECT_GT(hysteresis.global_blocks(), single.global_blocks());
+  for (const auto& key : in_band) EXPECT_TRUE(hysteresis.forest().find(key).has_value()) << "a block in the band coarsened";
+}
