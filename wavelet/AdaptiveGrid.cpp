@@ -264,19 +264,6 @@ std::array<std::array<bool, 2>, Dim> AdaptiveGrid<Dim>::bounded_edges(const Key&
 
 namespace {
 
-/// BlockKey::from_coords, interleaving only the bits the coordinates use (the plan builder's
-/// hot spot: a full 64-bit interleave per lookup dominated it).
-template <int Dim>
-BlockKey<Dim> morton_key(int level, const std::array<std::uint32_t, Dim>& c) {
-  std::uint32_t all = 0;
-  for (auto v : c) all |= v;
-  BlockKey<Dim> key{level, 0};
-  for (int b = 0; (all >> b) != 0; ++b)
-    for (int a = 0; a < Dim; ++a)
-      key.morton |= static_cast<std::uint64_t>((c[static_cast<std::size_t>(a)] >> b) & 1u) << (b * Dim + a);
-  return key;
-}
-
 template <int Dim>
 struct PointResolver {
   const BlockForest<Dim>& forest;
@@ -311,7 +298,7 @@ struct PointResolver {
         const GlobalIndex64 at = l >= level ? idx[au] << (l - level) : idx[au] >> (level - l);
         c[au] = static_cast<std::uint32_t>(at / config.block_size);
       }
-      if (const auto found = forest.find(morton_key<Dim>(l, c))) {
+      if (const auto found = forest.find(BlockKey<Dim>::from_coords(l, c))) {
         last_level = l;
         last_coords = c;
         for (int a = 0; a < Dim; ++a)
