@@ -55,19 +55,14 @@ inline double narrow_diffusion(const double* mu, const double* f, std::ptrdiff_t
   return narrow_diffusion_of(mu, [f](std::ptrdiff_t k) { return f[k]; }, i, stride, inv_h2);
 }
 
-/// The part of tau_ij that narrow_diffusion does not carry: mu (d_i u_j - 2/3 div u delta_ij),
-/// from the velocity gradient grad[i][j] = d_j u_i at a point.
-template <int Dim>
-inline double viscous_stress_rest(const double (&grad)[Dim][Dim], double mu, int i, int j) {
-  double divergence = 0;
-  for (int k = 0; k < Dim; ++k) divergence += grad[k][k];
-  return mu * (grad[j][i] - (i == j ? 2.0 / 3.0 * divergence : 0.0));
-}
-
-/// Viscous stress tau_ij (i = row) from the velocity gradient grad[i][j] = d_j u_i at a point.
+/// Viscous stress tau_ij = mu (d_j u_i + d_i u_j - 2/3 div u delta_ij) (i = row) from the velocity
+/// gradient grad[i][j] = d_j u_i at a point (the control-volume forces; add_block_viscous splits
+/// the same stress between the narrow operator and nested derivatives).
 template <int Dim>
 inline double viscous_stress(const double (&grad)[Dim][Dim], double mu, int i, int j) {
-  return mu * grad[i][j] + viscous_stress_rest<Dim>(grad, mu, i, j);
+  double divergence = 0;
+  for (int k = 0; k < Dim; ++k) divergence += grad[k][k];
+  return mu * (grad[i][j] + grad[j][i] - (i == j ? 2.0 / 3.0 * divergence : 0.0));
 }
 
 /// The fields add_block_viscous reads and its scratch, arrays of one block with ghosts.

@@ -232,8 +232,9 @@ AdaptCounts BlockForest<Dim>::adapted_leaves(std::span<const AdaptTag> tags, std
     ++counts.coarsened;
   }
 
-  if (counts.coarsened == 0 && std::count(refine.begin(), refine.end(), 1) == 0) return counts;
-  next.reserve(n + static_cast<std::size_t>(std::count(refine.begin(), refine.end(), 1)) * Key::kChildren);
+  const auto refined = static_cast<std::size_t>(std::count(refine.begin(), refine.end(), 1));
+  if (counts.coarsened == 0 && refined == 0) return counts;  // `next` stays empty
+  next.reserve(n + refined * Key::kChildren);
   for (std::size_t i = 0; i < n; ++i) {
     if (refine[i]) {
       for (int k = 0; k < Key::kChildren; ++k) next.push_back(leaves_[i].child(k));

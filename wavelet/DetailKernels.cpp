@@ -132,12 +132,14 @@ std::pair<double, double> maxima(const double* u, const DetailRows<Dim>& rows, d
   return {largest, largest_near};
 }
 
+/// Four doubles in GCC's vector types: selects on them become packed min/max (left to the
+/// auto-vectoriser, lanes kept in arrays stayed scalar, with stack spills).
+typedef double Lanes __attribute__((vector_size(4 * sizeof(double))));
+
 }  // namespace
 
 GRAINWAVE_KERNEL_CLONES std::pair<double, double> value_range(const double* u, std::size_t n) {
-  // Two groups of four lanes in GCC's vector types: the selects become packed min/max (left to
-  // the auto-vectoriser, the lanes stayed scalar). `v < lo ? v : lo` keeps lo where v is NaN.
-  typedef double Lanes __attribute__((vector_size(4 * sizeof(double))));
+  // Two groups of lanes; `v < lo ? v : lo` keeps lo where v is NaN.
   constexpr std::size_t kStep = 2 * 4;
   Lanes lo0 = {u[0], u[0], u[0], u[0]}, hi0 = lo0, lo1 = lo0, hi1 = lo0;
   std::size_t k = 0;
@@ -163,7 +165,6 @@ GRAINWAVE_KERNEL_CLONES std::pair<double, double> value_range(const double* u, s
 }
 
 GRAINWAVE_KERNEL_CLONES double interior_largest_magnitude(const double* u, int dim, int bs, int g) {
-  typedef double Lanes __attribute__((vector_size(4 * sizeof(double))));
   const auto ubs = static_cast<std::size_t>(bs), ug = static_cast<std::size_t>(g), uw = ubs + 2 * ug;
   const std::size_t planes = dim == 3 ? ubs : 1, lines = dim >= 2 ? ubs : 1;
   Lanes top = {0, 0, 0, 0};
