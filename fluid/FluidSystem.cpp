@@ -18,6 +18,7 @@
 #include "fluid/IdealGas.hpp"
 #include "fluid/ImmersedBodies.hpp"
 #include "fluid/InitialFieldFile.hpp"
+#include "fluid/LiftStatistics.hpp"
 #include "fluid/Penalization.hpp"
 #include "fluid/SplitConvection.hpp"
 #include "fluid/ViscousTerms.hpp"
@@ -1259,15 +1260,13 @@ void FluidModel<Dim>::add_force_metrics(io::Json& out) const {
     auto along = [](const std::array<double, 3>& f, const std::array<double, 3>& e) { return f[0] * e[0] + f[1] * e[1] + f[2] * e[2]; };
     const double from = penalization_.average_after > 0 ? penalization_.average_after : 0.5 * history.back().t;
     std::vector<double> times, lift;
-    double drag_sum = 0, cv_sum = 0, n = 0, lift_min = 0, lift_max = 0;
+    double drag_sum = 0, cv_sum = 0, n = 0;
     for (std::size_t i = 1; i < history.size(); ++i) {  // sample 0 has no control-volume rate
       const auto& sample = history[i];
       if (sample.t < from) continue;
       const double cl = along(sample.force, c.lift_direction) / c.dynamic_force;
       drag_sum += along(sample.force, c.drag_direction) / c.dynamic_force;
       cv_sum += along(sample.force_cv, c.drag_direction) / c.dynamic_force;
-      lift_min = n == 0 ? cl : std::min(lift_min, cl);
-      lift_max = n == 0 ? cl : std::max(lift_max, cl);
       n += 1;
       times.push_back(sample.t);
       lift.push_back(cl);
@@ -1276,18 +1275,12 @@ void FluidModel<Dim>::add_force_metrics(io::Json& out) const {
     if (n == 0) continue;
     out.set("Cd_mean" + suffix, drag_sum / n);
     out.set("Cd_control_volume" + suffix, cv_sum / n);
-    out.set("Cl_amplitude" + suffix, 0.5 * (lift_max - lift_min));
-    // Strouhal number from the upward zero crossings of Cl - mean(Cl), when it oscillates.
-    double mean = 0;
-    for (double v : lift) mean += v / static_cast<double>(lift.size());
-    std::vector<double> crossings;
-    for (std::size_t i = 1; i < lift.size(); ++i)
-      if (lift[i - 1] < mean && lift[i] >= mean)
-        crossings.push_back(times[i - 1] + (mean - lift[i - 1]) / (lift[i] - lift[i - 1]) * (times[i] - times[i - 1]));
-    if (crossings.size() >= 3 && 0.5 * (lift_max - lift_min) > 1e-3) {
-      const double period = (crossings.back() - crossings.front()) / static_cast<double>(crossings.size() - 1);
-      out.set("St" + suffix, D / (U * period));
-      out.set("shedding_periods" + suffix, static_cast<long>(crossings.size() - 1));
+    const LiftStatistics lift_stats = lift_statistics(times, lift);
+    out.set("Cl_amplitude" + suffix, lift_stats.amplitude);
+    out.set("Cl_half_range" + suffix, lift_stats.half_range);
+    if (lift_stats.period && lift_stats.amplitude > 1e-3) {
+      out.set("St" + suffix, D / (U * *lift_stats.period));
+      out.set("shedding_periods" + suffix, lift_stats.periods);
     }
   }
 }
