@@ -1275,10 +1275,10 @@ void FluidModel<Dim>::add_force_metrics(io::Json& out) const {
     if (n == 0) continue;
     out.set("Cd_mean" + suffix, drag_sum / n);
     out.set("Cd_control_volume" + suffix, cv_sum / n);
-    const LiftStatistics lift_stats = lift_statistics(times, lift);
+    const LiftStatistics lift_stats = lift_statistics(times, lift, 1e-3);
     out.set("Cl_amplitude" + suffix, lift_stats.amplitude);
     out.set("Cl_half_range" + suffix, lift_stats.half_range);
-    if (lift_stats.period && lift_stats.amplitude > 1e-3) {
+    if (lift_stats.period) {
       out.set("St" + suffix, D / (U * *lift_stats.period));
       out.set("shedding_periods" + suffix, lift_stats.periods);
     }

@@ -6,7 +6,7 @@
 
 namespace grainwave::fluid {
 
-LiftStatistics lift_statistics(std::span<const double> times, std::span<const double> lift) {
+LiftStatistics lift_statistics(std::span<const double> times, std::span<const double> lift, double min_amplitude) {
   LiftStatistics s;
   const std::size_t n = std::min(times.size(), lift.size());
   if (n == 0) return s;
@@ -17,6 +17,7 @@ LiftStatistics lift_statistics(std::span<const double> times, std::span<const do
   for (std::size_t i = 0; i < n; ++i) variance += (lift[i] - s.mean) * (lift[i] - s.mean) / static_cast<double>(n);
   const double rms = std::sqrt(variance);
   s.amplitude = std::sqrt(2.0) * rms;
+  if (!(s.amplitude > min_amplitude)) return s;
   std::vector<double> crossings;
   bool armed = false;
   for (std::size_t i = 1; i < n; ++i) {

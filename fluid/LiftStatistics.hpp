@@ -16,11 +16,14 @@ struct LiftStatistics {
   double mean = 0;
   double amplitude = 0;   ///< sqrt(2) rms(Cl - mean)
   double half_range = 0;  ///< (max - min) / 2 of the samples, jitter included
-  std::optional<double> period;  ///< mean time between counted crossings (>= 2 periods seen)
+  /// Mean time between counted crossings: only when the lift oscillates (amplitude above
+  /// min_amplitude) and at least 2 periods were seen.
+  std::optional<double> period;
   long periods = 0;
 };
 
-/// Statistics of samples lift[k] at increasing times[k] (equal lengths).
-LiftStatistics lift_statistics(std::span<const double> times, std::span<const double> lift);
+/// Statistics of samples lift[k] at increasing times[k] (equal lengths); a lift whose amplitude
+/// is at most min_amplitude is steady (its jitter has no period).
+LiftStatistics lift_statistics(std::span<const double> times, std::span<const double> lift, double min_amplitude);
 
 }  // namespace grainwave::fluid

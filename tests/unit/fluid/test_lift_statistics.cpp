@@ -35,7 +35,7 @@ Signal shedding(double amplitude, double period, double offset, double jitter, d
 
 TEST(LiftStatistics, CleanSinusoidGivesItsPeriodAndAmplitude) {
   const Signal s = shedding(0.33, 6.1, 0.02, 0.0, 0.01, 61.0);
-  const gf::LiftStatistics stats = gf::lift_statistics(s.t, s.lift);
+  const gf::LiftStatistics stats = gf::lift_statistics(s.t, s.lift, 1e-3);
   ASSERT_TRUE(stats.period.has_value());
   EXPECT_NEAR(*stats.period, 6.1, 1e-4);
   EXPECT_EQ(stats.periods, 9);  // crossings at 4.575 + k 6.1 within [0, 61]: ten
@@ -47,7 +47,7 @@ TEST(LiftStatistics, JitterAddsNoPeriodsAndLittleAmplitude) {
   // Jitter of 15% of the amplitude sampled 600 times a period: the plain zero-crossing count
   // sees many extra crossings near each true one; the hysteresis does not.
   const Signal s = shedding(0.33, 62.5, 0.0, 0.05, 0.1, 625.0);
-  const gf::LiftStatistics stats = gf::lift_statistics(s.t, s.lift);
+  const gf::LiftStatistics stats = gf::lift_statistics(s.t, s.lift, 1e-3);
   long plain_crossings = 0;
   for (std::size_t i = 1; i < s.lift.size(); ++i) plain_crossings += s.lift[i - 1] < 0 && s.lift[i] >= 0;
   EXPECT_GT(plain_crossings, 20);  // the failure this guards against: ten true crossings
@@ -60,9 +60,13 @@ TEST(LiftStatistics, JitterAddsNoPeriodsAndLittleAmplitude) {
 
 TEST(LiftStatistics, SteadyLiftHasNoPeriod) {
   const Signal s = shedding(0.0, 1.0, 0.01, 1e-6, 0.01, 50.0);
-  const gf::LiftStatistics stats = gf::lift_statistics(s.t, s.lift);
-  EXPECT_LT(stats.amplitude, 1e-5);  // the caller reports St only above an amplitude of 1e-3
-  const gf::LiftStatistics empty = gf::lift_statistics({}, {});
+  const gf::LiftStatistics stats = gf::lift_statistics(s.t, s.lift, 1e-3);
+  EXPECT_LT(stats.amplitude, 1e-5);
+  EXPECT_FALSE(stats.period.has_value());  // the jitter alone crosses the mean often
+  // The same jitter counted with no amplitude floor does give "periods": the floor is what
+  // keeps a steady body from reporting a Strouhal number.
+  EXPECT_TRUE(gf::lift_statistics(s.t, s.lift, 0.0).period.has_value());
+  const gf::LiftStatistics empty = gf::lift_statistics({}, {}, 1e-3);
   EXPECT_FALSE(empty.period.has_value());
   EXPECT_EQ(empty.amplitude, 0.0);
 }
