@@ -1,5 +1,7 @@
 #include "core/Mpi.hpp"
 
+#include <algorithm>
+
 namespace grainwave::mpi {
 
 Session::Session(int* argc, char*** argv) {
@@ -84,6 +86,65 @@ std::vector<std::string> all_gather(const std::string& value, MPI_Comm comm) {
     out.push_back(all.substr(static_cast<std::size_t>(offsets[static_cast<std::size_t>(i)]),
                              static_cast<std::size_t>(counts[static_cast<std::size_t>(i)])));
   return out;
+}
+
+std::vector<double> all_gather(const std::vector<double>& values, MPI_Comm comm) {
+  const int p = size(comm);
+  const int n = static_cast<int>(values.size());
+  std::vector<int> counts(static_cast<std::size_t>(p)), offsets(static_cast<std::size_t>(p));
+  MPI_Allgather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, comm);
+  int total = 0;
+  for (int i = 0; i < p; ++i) {
+    offsets[static_cast<std::size_t>(i)] = total;
+    total += counts[static_cast<std::size_t>(i)];
+  }
+  std::vector<double> all(static_cast<std::size_t>(total));
+  MPI_Allgatherv(values.data(), n, MPI_DOUBLE, all.data(), counts.data(), offsets.data(),
+                 MPI_DOUBLE, comm);
+  return all;
+}
+
+void sum_in_place(std::vector<double>& values, MPI_Comm comm) {
+  if (size(comm) == 1 || values.empty()) return;
+  MPI_Allreduce(MPI_IN_PLACE, values.data(), static_cast<int>(values.size()), MPI_DOUBLE,
+                MPI_SUM, comm);
+}
+
+Exchange::Exchange(MPI_Comm comm) : comm_(comm) {
+  const auto p = static_cast<std::size_t>(size(comm));
+  outgoing_.resize(p);
+  send_counts_.resize(p);
+  send_offsets_.resize(p);
+  receive_counts_.resize(p);
+  receive_offsets_.resize(p);
+}
+
+void Exchange::clear() {
+  for (auto& buffer : outgoing_) buffer.clear();
+}
+
+void Exchange::exchange() {
+  const std::size_t p = outgoing_.size();
+  int total = 0;
+  for (std::size_t r = 0; r < p; ++r) {
+    send_counts_[r] = static_cast<int>(outgoing_[r].size());
+    send_offsets_[r] = total;
+    total += send_counts_[r];
+  }
+  send_.resize(static_cast<std::size_t>(total));
+  for (std::size_t r = 0; r < p; ++r)
+    std::copy(outgoing_[r].begin(), outgoing_[r].end(),
+              send_.begin() + send_offsets_[r]);
+  MPI_Alltoall(send_counts_.data(), 1, MPI_INT, receive_counts_.data(), 1, MPI_INT, comm_);
+  int received = 0;
+  for (std::size_t r = 0; r < p; ++r) {
+    receive_offsets_[r] = received;
+    received += receive_counts_[r];
+  }
+  incoming_.resize(static_cast<std::size_t>(received));
+  MPI_Alltoallv(send_.data(), send_counts_.data(), send_offsets_.data(), MPI_DOUBLE,
+                incoming_.data(), receive_counts_.data(), receive_offsets_.data(), MPI_DOUBLE,
+                comm_);
 }
 
 }  // namespace grainwave::mpi

@@ -72,4 +72,59 @@ void ParticleStore::append_from(const ParticleStore& other, std::size_t i) {
   torque.back() = other.torque[i];
 }
 
+namespace {
+template <class T>
+void keep_slots(std::vector<T>& v, const std::vector<std::uint8_t>& keep) {
+  std::size_t out = 0;
+  for (std::size_t i = 0; i < v.size(); ++i)
+    if (keep[i]) v[out++] = v[i];
+  v.resize(out);
+}
+template <class T>
+void permute_slots(std::vector<T>& v, const std::vector<std::uint32_t>& order) {
+  std::vector<T> old(v);
+  for (std::size_t k = 0; k < order.size(); ++k) v[k] = old[order[k]];
+}
+}  // namespace
+
+void ParticleStore::truncate(std::size_t n) {
+  if (n >= size()) return;
+  position.resize(n);
+  velocity.resize(n);
+  angular_velocity.resize(n);
+  force.resize(n);
+  torque.resize(n);
+  radius.resize(n);
+  mass.resize(n);
+  inertia.resize(n);
+  id.resize(n);
+  flags.resize(n);
+}
+
+void ParticleStore::keep_where(const std::vector<std::uint8_t>& keep) {
+  keep_slots(position, keep);
+  keep_slots(velocity, keep);
+  keep_slots(angular_velocity, keep);
+  keep_slots(force, keep);
+  keep_slots(torque, keep);
+  keep_slots(radius, keep);
+  keep_slots(mass, keep);
+  keep_slots(inertia, keep);
+  keep_slots(id, keep);
+  keep_slots(flags, keep);
+}
+
+void ParticleStore::permute(const std::vector<std::uint32_t>& order) {
+  permute_slots(position, order);
+  permute_slots(velocity, order);
+  permute_slots(angular_velocity, order);
+  permute_slots(force, order);
+  permute_slots(torque, order);
+  permute_slots(radius, order);
+  permute_slots(mass, order);
+  permute_slots(inertia, order);
+  permute_slots(id, order);
+  permute_slots(flags, order);
+}
+
 }  // namespace grainwave::particles

@@ -51,6 +51,12 @@ struct ParticleStore {
   void remove(std::size_t i);
   /// Appends slot i of `other`.
   void append_from(const ParticleStore& other, std::size_t i);
+  /// Drops every slot from n on (ghost copies are kept at the end of a store).
+  void truncate(std::size_t n);
+  /// Keeps the slots with keep[i] != 0, in their order (a stable compaction).
+  void keep_where(const std::vector<std::uint8_t>& keep);
+  /// Rearranges the slots so that new slot k holds old slot order[k] (a permutation).
+  void permute(const std::vector<std::uint32_t>& order);
 
   bool is_fixed(std::size_t i) const { return (flags[i] & kFixed) != 0; }
   /// Inverse mass, zero for fixed particles (so impulses and forces leave them unmoved).

@@ -22,6 +22,7 @@ ContactForceField::ContactForceField(ContactModel model, const Domain& domain,
                                          const Vec3& d, double distance2, Contact& c) const {
   const double inverse_mass_sum = inverse_mass_[i] + inverse_mass_[j];
   if (inverse_mass_sum == 0.0 || distance2 == 0.0) return false;  // fixed pairs never interact
+  if (has_ghosts_ && i >= owned_end_ && j >= owned_end_) return false;  // another rank's pair
   const double distance = std::sqrt(distance2);
   const double ri = store.radius[i], rj = store.radius[j];
   c.i = i;
@@ -56,7 +57,11 @@ void ContactForceField::external_forces(const ParticleStore& store) {
   const std::size_t n = store.size();
   force_.resize(n);
   torque_.resize(n);
-  for (std::size_t i = 0; i < n; ++i) {
+  for (std::size_t i = owned_end_; i < n; ++i) {  // ghosts: their owner sums their forces
+    force_[i].setZero();
+    torque_[i].setZero();
+  }
+  for (std::size_t i = 0; i < owned_end_; ++i) {
     force_[i] = store.force[i] + store.mass[i] * settings_.gravity;
     torque_[i] = store.torque[i];
     for (const RecyclingDragZone& zone : settings_.drag_zones)
@@ -77,10 +82,20 @@ void ContactForceField::external_forces(const ParticleStore& store) {
 }
 
 [[gnu::always_inline]] inline void ContactForceField::note_depth(const ParticleStore& store, const Contact& c) {
-  ++contact_count_;
+  // A pair of an owned particle and a ghost is found on both ranks: the rank owning the smaller
+  // id counts it, so the counts of all ranks add up to the serial count.
+  if (!has_ghosts_ || c.is_wall || (c.i < owned_end_ && c.partner < owned_end_)) {
+    ++contact_count_;
+  } else {
+    const bool i_owned = c.i < owned_end_;
+    const std::int64_t owned_id = store.id[i_owned ? c.i : c.partner];
+    const std::int64_t ghost_id = store.id[i_owned ? c.partner : c.i];
+    if (owned_id < ghost_id) ++contact_count_;
+  }
   const double r = c.is_wall ? store.radius[c.i] : std::min(store.radius[c.i], store.radius[c.partner]);
   const double depth = c.overlap / r;
-  if (depth > deepest_.overlap_over_radius) deepest_ = DeepestContact{depth, c.i, c.partner, c.is_wall};
+  if (depth > deepest_.overlap_over_radius)
+    deepest_ = DeepestContact{depth, c.i, c.partner, c.is_wall, store.id[c.i]};
 }
 
 template <class ContactFunction>
@@ -89,9 +104,9 @@ void ContactForceField::for_each_contact(const ParticleStore& store, ContactFunc
   auto pair = [&](std::uint32_t i, std::uint32_t j, const Vec3& d, double distance2) {
     if (particle_contact(store, i, j, d, distance2, c)) f(c);
   };
-  if (settings_.verlet_skin > 0.0) verlet_.for_each_touching_pair(store, pair);
+  if (settings_.verlet_skin > 0.0 && !has_ghosts_) verlet_.for_each_touching_pair(store, pair);
   else cells_.for_each_touching_pair(pair);
-  const std::size_t n = store.size();
+  const std::size_t n = owned_end_;  // walls act on owned particles only
   for (std::size_t w = 0; w < plane_walls_.size(); ++w) {
     const PlaneWall& wall = plane_walls_[w];
     if (!wall.enabled) continue;
@@ -152,8 +167,20 @@ void ContactForceField::evaluate(const ParticleStore& store, HistoryStage stage,
   deepest_ = DeepestContact{};
   inverse_mass_.resize(n);
   for (std::size_t i = 0; i < n; ++i) inverse_mass_[i] = store.inverse_mass(i);
+  owned_end_ = n;
+  while (owned_end_ > 0 && (store.flags[owned_end_ - 1] & kGhost) != 0) --owned_end_;
+  has_ghosts_ = owned_end_ < n;
+  if (has_ghosts_) {
+    // Both ranges are in id order (SlabDecomposition keeps them so): merge them by id.
+    visit_order_.resize(n);
+    std::uint32_t a = 0, b = static_cast<std::uint32_t>(owned_end_);
+    const auto owned = static_cast<std::uint32_t>(owned_end_), all = static_cast<std::uint32_t>(n);
+    for (std::size_t k = 0; k < n; ++k)
+      visit_order_[k] = (b == all || (a < owned && store.id[a] < store.id[b])) ? a++ : b++;
+  }
   if (n > 0) {
-    const double skin = std::max(settings_.verlet_skin, 0.0);
+    // Ghosts are renewed at every evaluation, so a Verlet list of slots would not stay valid.
+    const double skin = has_ghosts_ ? 0.0 : std::max(settings_.verlet_skin, 0.0);
     const bool search_cells = skin == 0.0 || verlet_.stale(store, domain_);
     if (search_cells) {
       double cell_width = settings_.cell_width;
@@ -163,7 +190,8 @@ void ContactForceField::evaluate(const ParticleStore& store, HistoryStage stage,
         cell_width = 2.0 * largest + skin;
       }
       if (skin > 0.0) verlet_.build(store, domain_, cell_width, skin);
-      else cells_.build(store, domain_, cell_width);
+      else cells_.build(store, domain_, cell_width, settings_.grid_particles,
+                        has_ghosts_ ? &visit_order_ : nullptr);
     }
     if (settings_.fused && !model_.tangential->needs_history()) {
       if (const auto* law = dynamic_cast<const LinearSpringDashpot*>(model_.normal.get()); law && try_fused(store, *law))
@@ -182,6 +210,12 @@ void ContactForceField::evaluate(const ParticleStore& store, HistoryStage stage,
         k = 0;
       }
       Contact& c = contacts_[k];
+      if (!c.is_wall && store.id[c.i] > store.id[c.partner]) {
+        // Canonical orientation (see the header): the same contact seen from the other side.
+        std::swap(c.i, c.partner);
+        c.normal = -c.normal;
+        c.relative_velocity = -c.relative_velocity;
+      }
       const std::int64_t other = c.is_wall ? ContactHistory::wall_key(c.partner)
                                            : store.id[c.partner];
       c.history = history_.touch(store.id[c.i], other);

@@ -7,6 +7,18 @@
 // under gravity alone settles at the terminal speed v_term.
 // This class owns the loops and scratch memory; the laws own the pointwise physics. Nothing is
 // allocated per evaluation once the contact list has reached its working size.
+//
+// Ghosts (domain decomposition, particles/dem/SlabDecomposition): copies of other ranks'
+// particles, flagged kGhost, at the end of the store. A pair of two ghosts is skipped (another
+// rank owns it), walls act on owned particles only, and forces on ghosts are discarded by the
+// caller. When the owned slots and the ghost slots each lie in id order, the cells are filled in
+// their merged id order, so the touching pairs are met, and every owned particle's force summed,
+// in the order of the serial run: the forces are bitwise the serial ones.
+//
+// With a history law, each particle contact is put in a canonical orientation before its
+// history is looked up: i is the smaller id. The stored displacement δ_t is a vector "of j
+// relative to i"; without this, a pair reported the other way round (the particles moved into
+// each other's cells) would read δ_t with the wrong sign.
 #include "particles/Domain.hpp"
 #include "particles/ParticleStore.hpp"
 #include "particles/dem/ContactHistory.hpp"
@@ -52,6 +64,9 @@ struct ContactForceSettings {
   /// the pair is found, without a list of contacts (bitwise the same forces: the same
   /// arithmetic, added in the same order). false keeps the list (contacts()) for every law.
   bool fused = true;
+  /// Particle count that sizes the cell grid (LinkedCells::build); 0: the store's size. A
+  /// domain-decomposed run sets the global count so that every rank uses the serial grid.
+  std::size_t grid_particles = 0;
 };
 
 /// The deepest contact of an evaluation, relative to the smaller radius (the wall's particle's
@@ -60,6 +75,7 @@ struct DeepestContact {
   double overlap_over_radius = 0.0;
   std::uint32_t i = 0, partner = 0;  ///< slots; partner is the wall index when is_wall
   bool is_wall = false;
+  std::int64_t id = -1;  ///< id of particle i (slots of ghosts do not outlive the step)
 };
 
 class ContactForceField {
@@ -122,6 +138,9 @@ class ContactForceField {
   std::size_t contact_count_ = 0;
   DeepestContact deepest_;
   std::vector<double> inverse_mass_;  ///< per slot, 0 for fixed particles
+  std::size_t owned_end_ = 0;         ///< first ghost slot (ghosts trail the owned slots)
+  bool has_ghosts_ = false;
+  std::vector<std::uint32_t> visit_order_;  ///< owned and ghost slots merged by id
   std::vector<Vec3> force_;
   std::vector<Vec3> torque_;
 };

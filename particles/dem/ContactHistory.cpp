@@ -88,6 +88,27 @@ void ContactHistory::live_entries(std::vector<ContactHistoryEntry>& out) const {
     if (e.last_step >= 0 && live(e)) out.push_back(e);
 }
 
+void ContactHistory::live_entries_of(const std::vector<std::int64_t>& sorted_ids,
+                                     std::vector<ContactHistoryEntry>& out) const {
+  if (sorted_ids.empty()) return;
+  auto listed = [&](std::int64_t id) {
+    return std::binary_search(sorted_ids.begin(), sorted_ids.end(), id);
+  };
+  for (const ContactHistoryEntry& e : slots_)
+    if (e.last_step >= 0 && live(e) && (listed(e.first) || listed(e.second))) out.push_back(e);
+}
+
+void ContactHistory::adopt(const ContactHistoryEntry& entry) {
+  if (!live(entry) || find(entry.first, entry.second)) return;
+  if (slots_.empty() || nearly_full()) make_room();
+  std::size_t k = home(entry.first, entry.second);
+  while (slots_[k].last_step >= 0 &&
+         !(slots_[k].first == entry.first && slots_[k].second == entry.second))
+    k = (k + 1) & (slots_.size() - 1);
+  if (slots_[k].last_step < 0) ++occupied_;
+  slots_[k] = entry;
+}
+
 void ContactHistory::restore(std::int64_t step, const std::vector<ContactHistoryEntry>& entries) {
   step_ = step;
   std::size_t capacity = 64;

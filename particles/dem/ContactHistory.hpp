@@ -51,6 +51,13 @@ class ContactHistory {
   /// Copies the live entries into `out` (its capacity is reused), for checkpoints, the last
   /// good state and, later, migration between ranks.
   void live_entries(std::vector<ContactHistoryEntry>& out) const;
+  /// Appends to `out` the live entries of which one partner is in `sorted_ids` (ascending):
+  /// the history that travels with particles migrating to another rank.
+  void live_entries_of(const std::vector<std::int64_t>& sorted_ids,
+                       std::vector<ContactHistoryEntry>& out) const;
+  /// Takes over an entry from another rank, unless the pair is live here already (then this
+  /// rank has been computing the same contact as a pair with a ghost, with the same values).
+  void adopt(const ContactHistoryEntry& entry);
   /// Replaces the table by `entries` at step counter `step` (a restart). Entries land in other
   /// slots than before, which changes nothing: lookups go by the id pair.
   void restore(std::int64_t step, const std::vector<ContactHistoryEntry>& entries);

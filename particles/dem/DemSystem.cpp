@@ -100,6 +100,21 @@ void write_replicated(io::Hdf5Group& g, const std::string& name,
   if (flat.empty()) return;
   g.write_rows(name, flat.data(), mpi::is_root() ? flat.size() / components : 0, components);
 }
+/// Rows of an array of which each rank holds its own part (the particles of a distributed
+/// store): every rank writes its rows. Not written when empty on every rank.
+template <class T>
+void write_distributed(io::Hdf5Group& g, const std::string& name, const std::vector<T>& flat,
+                       std::size_t components) {
+  if (mpi::sum(static_cast<std::int64_t>(flat.size())) == 0) return;
+  g.write_rows(name, flat.data(), flat.size() / components, components);
+}
+/// Replicated or distributed, as the store is.
+template <class T>
+void write_array(io::Hdf5Group& g, const std::string& name, const std::vector<T>& flat,
+                 std::size_t components, bool distributed) {
+  if (distributed) write_distributed(g, name, flat, components);
+  else write_replicated(g, name, flat, components);
+}
 std::vector<double> read_all_real(const io::Hdf5Group& g, const std::string& name) {
   if (!g.has(name)) return {};
   return g.read_rows_real(name, 0, g.shape(name)[0]);
@@ -203,6 +218,12 @@ void DemSystem::declare(SceneSchema& schema) {
       .of_length(2);
   s.real("max_overlap", 0.5, "largest overlap over the radius before the run stops as failed")
       .above(0);
+  s.text("decomposition", "slabs",
+         "on more than one MPI rank: slabs (each rank owns the particles of a slab along "
+         "decomposition_axis, with ghosts of its neighbours) or replicated (every rank steps all)")
+      .one_of({"slabs", "replicated"});
+  s.text("decomposition_axis", "x", "axis cut into slabs (balanced by particle count at the start)")
+      .one_of({"x", "y", "z"});
 
   auto& w = schema.section("dem_wall",
                            "A wall of the DEM: an infinite plane or a segment of the x-y plane "
@@ -319,6 +340,33 @@ DemSystem::DemSystem(const Scene& scene) : scene_(scene) {
   apply_settling_forces();
   initial_energy_ = mobile_kinetic_energy();
   initial_mobile_ = mobile_count();
+  global_mobile_ = initial_mobile_;
+  initial_fixed_ = static_cast<std::int64_t>(store_.size()) - initial_mobile_;
+
+  // The cell grid is fixed by the whole fill, so that every rank, and any number of ranks,
+  // searches on the grid of the serial run (and so meets the pairs in its order).
+  double largest = 0;
+  for (double r : store_.radius) largest = std::max(largest, r);
+  field_->settings().cell_width = 2 * largest;
+  field_->settings().grid_particles = store_.size();
+  const bool slabs = s.text("decomposition") == "slabs";
+  if (mpi::size() > 1 && slabs && placement_ != Placement::kCollision) {
+    const std::string axis_name = s.text("decomposition_axis");
+    const int axis = axis_name[0] - 'x';
+    if (axis >= domain_.dimension)
+      s.fail("decomposition_axis", "a 2D scene is cut along x or y");
+    auto cuts = SlabDecomposition::balanced_cuts(domain_, axis, store_, mpi::size());
+    decomposition_ = SlabDecomposition(domain_, axis, cuts, 2 * largest);
+    decomposition_.keep_owned(store_);
+    distributed_ = true;
+    std::string list;
+    for (double c : cuts) list += fmt::format("{}{:.4g}", list.empty() ? "" : ", ", c);
+    decomposition_note_ = fmt::format(", {} slabs along {} (cuts {})", mpi::size(), axis_name, list);
+  } else if (mpi::size() > 1) {
+    decomposition_note_ = placement_ == Placement::kCollision
+                              ? ", replicated on every rank (collision placement)"
+                              : ", replicated on every rank";
+  }
   y_before_.reserve(store_.size());
 }
 
@@ -470,14 +518,49 @@ double DemSystem::surface_gap() const {
 }
 
 std::string DemSystem::describe() const {
-  std::int64_t fixed = 0;
-  for (std::size_t i = 0; i < store_.size(); ++i) fixed += store_.is_fixed(i) ? 1 : 0;
+  // The counts of the scene as placed (describe() is not collective).
   return fmt::format(
-      "DEM: {} {} ({} fixed), {} + {}, {}, dt = {:.4g} s (tau/{}), {} walls{}{}", mobile_count(),
-      domain_.dimension == 3 ? "spheres" : "disks", fixed, normal_name_, tangential_name_,
+      "DEM: {} {} ({} fixed), {} + {}, {}, dt = {:.4g} s (tau/{}), {} walls{}{}", initial_mobile_,
+      domain_.dimension == 3 ? "spheres" : "disks", initial_fixed_, normal_name_, tangential_name_,
       runge_kutta_ ? "RK2" : "velocity Verlet", dt_, steps_per_collision_,
       field_->plane_walls().size() + field_->finite_walls().size(), has_gate_ ? ", gate" : "",
-      mpi::size() > 1 ? ", replicated on every rank" : "");
+      decomposition_note_);
+}
+
+double DemSystem::global_sum(double local) const { return distributed_ ? mpi::sum(local) : local; }
+std::int64_t DemSystem::global_sum(std::int64_t local) const {
+  return distributed_ ? mpi::sum(local) : local;
+}
+
+BinStatistics DemSystem::global_bins() const {
+  if (!distributed_) return bins_;
+  std::vector<double> raw = bins_.raw();
+  mpi::sum_in_place(raw);
+  BinStatistics all = bins_;
+  all.restore(bins_.samples(), raw);
+  return all;
+}
+
+void DemSystem::migrate_particles() {
+  ScopedTimer timer(timers_, "migration");
+  const bool forces = !runge_kutta_ && verlet_.has_forces();
+  decomposition_.migrate(store_, forces ? &verlet_.stored_forces() : nullptr,
+                         forces ? &verlet_.stored_torques() : nullptr,
+                         model_.tangential->needs_history() ? &field_->history() : nullptr);
+}
+
+std::vector<double> DemSystem::tally_partials() const {
+  return {static_cast<double>(tally_.removed), tally_.removed_mass, tally_.flow_mass,
+          tally_.flow_mass_total, tally_.particle_steps, tally_.beta_volume};
+}
+
+void DemSystem::set_tally_partials(const std::vector<double>& p) {
+  tally_.removed = static_cast<std::int64_t>(p[0]);
+  tally_.removed_mass = p[1];
+  tally_.flow_mass = p[2];
+  tally_.flow_mass_total = p[3];
+  tally_.particle_steps = p[4];
+  tally_.beta_volume = p[5];
 }
 
 std::int64_t DemSystem::mobile_count() const {
@@ -511,6 +594,8 @@ void DemSystem::finish_settling_if_done() {
     mass += store_.mass[i];
     momentum2 += store_.mass[i] * store_.velocity[i].squaredNorm();
   }
+  mass = global_sum(mass);
+  momentum2 = global_sum(momentum2);
   const double rms_speed = mass > 0 ? std::sqrt(momentum2 / mass) : 0.0;
   if (rms_speed > settle_speed_ && settle_speed_ > 0) return;
   tally_.settling = 0;
@@ -526,10 +611,18 @@ void DemSystem::advance(double /*t*/, double dt) {
   if (tally_.settling && settle_damping_ > 0) apply_settling_forces();
   {
     ScopedTimer timer(timers_, "contacts_and_integration");
-    if (runge_kutta_) rk2_.step(store_, *field_, dt);
-    else verlet_.step(store_, *field_, dt);
+    BeforeEvaluation ghosts;
+    if (distributed_)
+      ghosts = [this](ParticleStore& store) {
+        ScopedTimer exchange_timer(timers_, "ghost_exchange");
+        decomposition_.exchange_ghosts(store);
+      };
+    if (runge_kutta_) rk2_.step(store_, *field_, dt, ghosts);
+    else verlet_.step(store_, *field_, dt, ghosts);
+    if (distributed_) SlabDecomposition::strip_ghosts(store_);
   }
-  tally_.particle_steps += static_cast<double>(mobile_count());
+  const std::int64_t moving = mobile_count();
+  tally_.particle_steps += static_cast<double>(moving);
   const double t_start = tally_.time;
   tally_.time += dt;
   if (measure_flow_ && tally_.opened_at >= 0) {
@@ -544,6 +637,12 @@ void DemSystem::advance(double /*t*/, double dt) {
   if (measure_flow_ && tally_.time >= tally_.next_flow_record * (1 - 1e-12)) record_flow();
   if (placement_ == Placement::kCollision) probe_collision(dt);
   remove_leaving_particles();
+  if (distributed_) {
+    migrate_particles();
+    global_mobile_ = mpi::sum(mobile_count());
+  } else {
+    global_mobile_ = mobile_count();
+  }
   finish_settling_if_done();
   if (statistics_ && tally_.opened_at >= 0 && tally_.time >= tally_.next_sample * (1 - 1e-12)) {
     ScopedTimer timer(timers_, "statistics");
@@ -574,13 +673,18 @@ void DemSystem::record_flow() {
     above += store_.mass[i];
     scratch_heights_.push_back(store_.position[i].y());
   }
+  if (distributed_) {
+    above = mpi::sum(above);
+    scratch_heights_ = mpi::all_gather(scratch_heights_);
+  }
   double top = flow_plane_;
   if (!scratch_heights_.empty()) {
     const auto k = static_cast<std::ptrdiff_t>(0.99 * static_cast<double>(scratch_heights_.size() - 1));
     std::nth_element(scratch_heights_.begin(), scratch_heights_.begin() + k, scratch_heights_.end());
     top = scratch_heights_[static_cast<std::size_t>(k)];
   }
-  flow_csv_ += fmt::format("{:.9g},{:.9g},{:.9g},{:.9g}\n", tally_.time, tally_.flow_mass_total, above, top);
+  flow_csv_ += fmt::format("{:.9g},{:.9g},{:.9g},{:.9g}\n", tally_.time,
+                           global_sum(tally_.flow_mass_total), above, top);
   tally_.next_flow_record += flow_record_interval_;
   if (tally_.next_flow_record <= tally_.time) tally_.next_flow_record = tally_.time + flow_record_interval_;
 }
@@ -714,11 +818,32 @@ void DemSystem::sample_statistics() {
     ++tally_.beta_samples;
   }
   std::fill(sample_seen_.begin(), sample_seen_.end(), 0);
-  for (std::size_t i = 0; i < n; ++i) {
-    if (store_.is_fixed(i)) continue;
-    const auto id = static_cast<std::size_t>(store_.id[i]);
-    sample_position_[id] = store_.position[i];
-    sample_seen_[id] = 1;
+  if (distributed_) {
+    // Every rank keeps every particle's sample position: by the next sample a particle may
+    // belong to another rank.
+    std::vector<double> mine;
+    for (std::size_t i = 0; i < n; ++i)
+      if (!store_.is_fixed(i)) {
+        const Vec3& x = store_.position[i];
+        mine.insert(mine.end(), {static_cast<double>(store_.id[i]), x.x(), x.y(), x.z()});
+      }
+    const std::vector<double> all = mpi::all_gather(mine);
+    for (std::size_t k = 0; k + 3 < all.size(); k += 4) {
+      const auto id = static_cast<std::size_t>(all[k]);
+      if (sample_position_.size() <= id) {
+        sample_position_.resize(id + 1, Vec3::Zero());
+        sample_seen_.resize(id + 1, 0);
+      }
+      sample_position_[id] = Vec3(all[k + 1], all[k + 2], all[k + 3]);
+      sample_seen_[id] = 1;
+    }
+  } else {
+    for (std::size_t i = 0; i < n; ++i) {
+      if (store_.is_fixed(i)) continue;
+      const auto id = static_cast<std::size_t>(store_.id[i]);
+      sample_position_[id] = store_.position[i];
+      sample_seen_[id] = 1;
+    }
   }
   tally_.last_sample = tally_.time;
   tally_.next_sample += stats_interval_;
@@ -738,7 +863,7 @@ std::optional<std::string> DemSystem::check_state() const {
   if (c.overlap_over_radius > max_overlap_ratio_)
     return fmt::format("particle id {} overlaps its {} by {:.3g} of a radius (limit {:.3g}): "
                        "raise the stiffness or dem.steps_per_collision",
-                       store_.id[c.i], c.is_wall ? "wall" : "neighbour", c.overlap_over_radius,
+                       c.id, c.is_wall ? "wall" : "neighbour", c.overlap_over_radius,
                        max_overlap_ratio_);
   return std::nullopt;
 }
@@ -803,7 +928,7 @@ void visit_tally(Tally& t, F&& f) {
   f("beta_samples", t.beta_samples);
 }
 
-void write_particles(io::Hdf5Group& g, const ParticleStore& s, bool full,
+void write_particles(io::Hdf5Group& g, const ParticleStore& s, bool full, bool distributed,
                      const std::vector<std::size_t>* subset = nullptr) {
   std::vector<std::size_t> all;
   if (!subset) {
@@ -821,22 +946,22 @@ void write_particles(io::Hdf5Group& g, const ParticleStore& s, bool full,
     for (auto i : *subset) out.push_back(v[i]);
     return out;
   };
-  write_replicated(g, "position", pick3(s.position), 3);
-  write_replicated(g, "velocity", pick3(s.velocity), 3);
-  write_replicated(g, "angular_velocity", pick3(s.angular_velocity), 3);
-  write_replicated(g, "radius", pick1(s.radius), 1);
+  write_array(g, "position", pick3(s.position), 3, distributed);
+  write_array(g, "velocity", pick3(s.velocity), 3, distributed);
+  write_array(g, "angular_velocity", pick3(s.angular_velocity), 3, distributed);
+  write_array(g, "radius", pick1(s.radius), 1, distributed);
   std::vector<std::int64_t> ids, flags;
   for (auto i : *subset) {
     ids.push_back(s.id[i]);
     flags.push_back(s.flags[i]);
   }
-  write_replicated(g, "id", ids, 1);
-  write_replicated(g, "flags", flags, 1);
+  write_array(g, "id", ids, 1, distributed);
+  write_array(g, "flags", flags, 1, distributed);
   if (full) {
-    write_replicated(g, "force", pick3(s.force), 3);
-    write_replicated(g, "torque", pick3(s.torque), 3);
-    write_replicated(g, "mass", pick1(s.mass), 1);
-    write_replicated(g, "inertia", pick1(s.inertia), 1);
+    write_array(g, "force", pick3(s.force), 3, distributed);
+    write_array(g, "torque", pick3(s.torque), 3, distributed);
+    write_array(g, "mass", pick1(s.mass), 1, distributed);
+    write_array(g, "inertia", pick1(s.inertia), 1, distributed);
   }
 }
 
@@ -867,18 +992,20 @@ void write_bins(io::Hdf5Group& g, const BinStatistics& bins) {
 std::vector<io::OutputGrid> DemSystem::write_output(io::Hdf5File& file,
                                                     const std::string& file_name) {
   ScopedTimer timer(timers_, "output");
+  const std::int64_t total = global_sum(static_cast<std::int64_t>(store_.size()));
   {
     auto g = file.root().create_group("particles");
-    write_particles(g, store_, false);
-    g.set_attribute("count", static_cast<std::int64_t>(store_.size()));
+    write_particles(g, store_, false, distributed_);
+    g.set_attribute("count", total);
     g.set_attribute("dimension", static_cast<std::int64_t>(domain_.dimension));
     g.set_attribute("units", std::string("SI: m, m/s, rad/s"));
   }
   if (statistics_) {
     auto g = file.root().create_group("dem_statistics");
-    write_bins(g, bins_);
+    const BinStatistics bins = global_bins();
+    write_bins(g, bins);
     if (mpi::is_root())
-      io::write_text_atomically(file.path().parent_path() / "statistics.csv", bins_.csv());
+      io::write_text_atomically(file.path().parent_path() / "statistics.csv", bins.csv());
   }
   if (curtain_ && tally_.opened_at >= 0) write_curtain_state(file.path().parent_path());
   if (measure_flow_ && mpi::is_root())
@@ -889,7 +1016,7 @@ std::vector<io::OutputGrid> DemSystem::write_output(io::Hdf5File& file,
                                        {"angular_velocity", base + "angular_velocity", 3},
                                        {"id", base + "id", 1, "Int", 8},
                                        {"flags", base + "flags", 1, "Int", 8}};
-  return {{"particles", io::polyvertex_grid("particles", static_cast<long>(store_.size()),
+  return {{"particles", io::polyvertex_grid("particles", static_cast<long>(total),
                                             base + "position", arrays)}};
 }
 
@@ -914,26 +1041,41 @@ void DemSystem::write_curtain_state(const std::filesystem::path& folder) const {
   }
   {
     auto g = root.create_group("particles");
-    write_particles(g, store_, false, &inside);
-    g.set_attribute("count", static_cast<std::int64_t>(inside.size()));
+    write_particles(g, store_, false, distributed_, &inside);
+    g.set_attribute("count", global_sum(static_cast<std::int64_t>(inside.size())));
   }
   {
     auto g = root.create_group("profiles");
-    write_bins(g, bins_);
+    write_bins(g, global_bins());
   }
   file.commit();
 }
 
 void DemSystem::write_checkpoint(io::Hdf5Group& group) {
   auto g = group.create_group("dem");
-  write_particles(g, store_, true);
-  visit_tally(tally_, [&](const char* name, auto& value) { g.set_attribute(name, value); });
+  write_particles(g, store_, true, distributed_);
+  // The tally as attributes, with the per-rank sums added up (readable; a restart on another
+  // number of ranks uses them), and the per-rank parts as rows, one per rank.
+  Tally all = tally_;
+  if (distributed_) {
+    all.removed = mpi::sum(tally_.removed);
+    all.removed_mass = mpi::sum(tally_.removed_mass);
+    all.flow_mass = mpi::sum(tally_.flow_mass);
+    all.flow_mass_total = mpi::sum(tally_.flow_mass_total);
+    all.particle_steps = mpi::sum(tally_.particle_steps);
+    all.beta_volume = mpi::sum(tally_.beta_volume);
+  }
+  visit_tally(all, [&](const char* name, auto& value) { g.set_attribute(name, value); });
+  write_array(g, "tally_partials", tally_partials(), tally_partials().size(), distributed_);
   g.set_attribute("initial_energy", initial_energy_);
   g.set_attribute("initial_mobile", initial_mobile_);
   g.write_text("flow_csv", flow_csv_);
   const bool forces = !runge_kutta_ && verlet_.has_forces();
-  write_replicated(g, "integrator_force", forces ? flatten(verlet_.forces()) : std::vector<double>{}, 3);
-  write_replicated(g, "integrator_torque", forces ? flatten(verlet_.torques()) : std::vector<double>{}, 3);
+  write_array(g, "integrator_force", forces ? flatten(verlet_.forces()) : std::vector<double>{}, 3,
+              distributed_);
+  write_array(g, "integrator_torque", forces ? flatten(verlet_.torques()) : std::vector<double>{}, 3,
+              distributed_);
+  // Contacts between particles of two ranks are kept by both: such entries appear twice.
   std::vector<ContactHistoryEntry> entries;
   field_->history().live_entries(entries);
   std::vector<std::int64_t> keys;
@@ -943,11 +1085,13 @@ void DemSystem::write_checkpoint(io::Hdf5Group& group) {
     values.insert(values.end(), {e.displacement.x(), e.displacement.y(), e.displacement.z(),
                                  e.stage_velocity.x(), e.stage_velocity.y(), e.stage_velocity.z()});
   }
-  write_replicated(g, "history_keys", keys, 4);
-  write_replicated(g, "history_values", values, 6);
+  write_array(g, "history_keys", keys, 4, distributed_);
+  write_array(g, "history_values", values, 6, distributed_);
   g.set_attribute("history_step", field_->history().step());
-  write_replicated(g, "bins_raw", bins_.raw(), 6);
+  // Bin sums per rank: one block of rows per rank.
+  write_array(g, "bins_raw", bins_.raw(), 6, distributed_);
   g.set_attribute("bins_samples", static_cast<std::int64_t>(bins_.samples()));
+  g.set_attribute("ranks", static_cast<std::int64_t>(distributed_ ? mpi::size() : 1));
   write_replicated(g, "sample_position", flatten(sample_position_), 3);
   std::vector<std::int64_t> seen(sample_seen_.begin(), sample_seen_.end());
   write_replicated(g, "sample_seen", seen, 1);
@@ -965,60 +1109,119 @@ void DemSystem::read_checkpoint(const io::Hdf5Group& group) {
   const auto inertia = read_all_real(g, "inertia");
   const auto ids = read_all_integer(g, "id");
   const auto flags = read_all_integer(g, "flags");
+  auto force = unflatten(read_all_real(g, "integrator_force"));
+  auto torque = unflatten(read_all_real(g, "integrator_torque"));
+  // Every rank reads all particles and keeps those in its slab, in id order.
+  std::vector<std::size_t> mine;
+  for (std::size_t i = 0; i < ids.size(); ++i)
+    if (decomposition_.owner(x[i]) == (distributed_ ? mpi::rank() : 0)) mine.push_back(i);
+  std::stable_sort(mine.begin(), mine.end(), [&](std::size_t a, std::size_t b) { return ids[a] < ids[b]; });
   store_.clear();
-  for (std::size_t i = 0; i < ids.size(); ++i) {
+  std::vector<Vec3> my_force, my_torque;
+  for (const std::size_t i : mine) {
     store_.add(ids[i], x[i], v[i], w[i], r[i], m[i], inertia[i], static_cast<std::uint32_t>(flags[i]));
     store_.force.back() = f[i];
     store_.torque.back() = t[i];
+    if (!force.empty()) {
+      my_force.push_back(force[i]);
+      my_torque.push_back(torque[i]);
+    }
   }
   visit_tally(tally_, [&](const char* name, auto& value) {
     if constexpr (std::is_same_v<std::decay_t<decltype(value)>, double>) value = g.real_attribute(name);
     else value = g.integer_attribute(name);
   });
+  // The per-rank sums: this rank's part when as many ranks wrote the file, else the totals go
+  // to rank 0.
+  const std::int64_t writers = g.has_attribute("ranks") ? g.integer_attribute("ranks") : 1;
+  const std::int64_t ranks = distributed_ ? mpi::size() : 1;
+  const std::vector<double> partials = read_all_real(g, "tally_partials");
+  const std::size_t width = tally_partials().size();
+  if (writers == ranks && partials.size() == width * static_cast<std::size_t>(ranks)) {
+    const auto me = static_cast<std::size_t>(distributed_ ? mpi::rank() : 0);
+    set_tally_partials(std::vector<double>(partials.begin() + static_cast<std::ptrdiff_t>(me * width),
+                                           partials.begin() + static_cast<std::ptrdiff_t>((me + 1) * width)));
+  } else if (distributed_ && !mpi::is_root()) {
+    set_tally_partials(std::vector<double>(width, 0.0));
+  }
   initial_energy_ = g.real_attribute("initial_energy");
   initial_mobile_ = g.integer_attribute("initial_mobile");
   flow_csv_ = g.read_text("flow_csv");
-  const auto force = unflatten(read_all_real(g, "integrator_force"));
-  if (!force.empty()) verlet_.restore_forces(force, unflatten(read_all_real(g, "integrator_torque")));
+  if (!force.empty()) verlet_.restore_forces(std::move(my_force), std::move(my_torque));
   else verlet_.reset();
+  // The history entries of the contacts this rank computes: those of an owned particle (once,
+  // though a contact between two ranks was written by both).
+  std::vector<std::int64_t> owned_ids(store_.id.begin(), store_.id.end());
   const auto keys = read_all_integer(g, "history_keys");
   const auto values = read_all_real(g, "history_values");
-  std::vector<ContactHistoryEntry> entries(keys.size() / 4);
-  for (std::size_t k = 0; k < entries.size(); ++k) {
-    auto& e = entries[k];
+  std::vector<ContactHistoryEntry> entries;
+  for (std::size_t k = 0; k < keys.size() / 4; ++k) {
+    ContactHistoryEntry e;
     e.first = keys[4 * k];
     e.second = keys[4 * k + 1];
     e.last_step = keys[4 * k + 2];
     e.is_new = keys[4 * k + 3] != 0;
     e.displacement = Vec3(values[6 * k], values[6 * k + 1], values[6 * k + 2]);
     e.stage_velocity = Vec3(values[6 * k + 3], values[6 * k + 4], values[6 * k + 5]);
+    const bool ours = std::binary_search(owned_ids.begin(), owned_ids.end(), e.first) ||
+                      std::binary_search(owned_ids.begin(), owned_ids.end(), e.second);
+    if (ours) entries.push_back(e);
   }
+  auto pair_less = [](const ContactHistoryEntry& a, const ContactHistoryEntry& b) {
+    return a.first != b.first ? a.first < b.first : a.second < b.second;
+  };
+  std::stable_sort(entries.begin(), entries.end(), pair_less);
+  entries.erase(std::unique(entries.begin(), entries.end(),
+                            [](const ContactHistoryEntry& a, const ContactHistoryEntry& b) {
+                              return a.first == b.first && a.second == b.second;
+                            }),
+                entries.end());
   field_->history().restore(g.integer_attribute("history_step"), entries);
-  bins_.restore(static_cast<long>(g.integer_attribute("bins_samples")), read_all_real(g, "bins_raw"));
+  // Bin sums: this rank's block when as many ranks wrote them, else the totals on rank 0.
+  std::vector<double> raw = read_all_real(g, "bins_raw");
+  const std::size_t block = bins_.raw().size();
+  if (block > 0 && raw.size() == block * static_cast<std::size_t>(writers)) {
+    std::vector<double> mine_raw(block, 0.0);
+    if (writers == ranks) {
+      const auto me = static_cast<std::size_t>(distributed_ ? mpi::rank() : 0);
+      std::copy(raw.begin() + static_cast<std::ptrdiff_t>(me * block),
+                raw.begin() + static_cast<std::ptrdiff_t>((me + 1) * block), mine_raw.begin());
+    } else if (!distributed_ || mpi::is_root()) {
+      for (std::size_t k = 0; k < raw.size(); ++k) mine_raw[k % block] += raw[k];
+    }
+    raw = std::move(mine_raw);
+  }
+  bins_.restore(static_cast<long>(g.integer_attribute("bins_samples")), raw);
   sample_position_ = unflatten(read_all_real(g, "sample_position"));
   const auto seen = read_all_integer(g, "sample_seen");
   sample_seen_.assign(seen.begin(), seen.end());
   for (std::size_t w2 : gate_walls_) field_->finite_walls()[w2].enabled = tally_.settling != 0;
+  global_mobile_ = global_sum(mobile_count());
 }
 
 void DemSystem::report(io::Json& counts, io::Json& metrics, double step_wall_s, long steps) const {
-  const std::int64_t mobile = mobile_count();
+  const std::int64_t mobile = global_sum(mobile_count());
+  const std::int64_t held = global_sum(static_cast<std::int64_t>(store_.size()));
+  const double kinetic_energy = global_sum(mobile_kinetic_energy());
   counts.set("particles", mobile);
-  counts.set("fixed_particles", static_cast<std::int64_t>(store_.size()) - mobile);
-  counts.set("particles_removed", tally_.removed);
-  counts.set("contacts", static_cast<std::int64_t>(field_->contact_count()));
+  counts.set("fixed_particles", held - mobile);
+  counts.set("particles_removed", global_sum(tally_.removed));
+  counts.set("contacts", global_sum(static_cast<std::int64_t>(field_->contact_count())));
+  if (distributed_) counts.set("ranks_in_slabs", static_cast<std::int64_t>(mpi::size()));
   metrics.set("time_step", dt_);
-  metrics.set("kinetic_energy", mobile_kinetic_energy());
+  metrics.set("kinetic_energy", kinetic_energy);
   if (tally_.opened_at >= 0) metrics.set("gate_opened_at", tally_.opened_at);
-  const double particle_steps = tally_.particle_steps;
+  const double particle_steps = global_sum(tally_.particle_steps);
   (void)steps;
   metrics.set("particle_steps_per_s", step_wall_s > 0 ? particle_steps / step_wall_s : 0.0);
+  // Memory of all ranks over the particles: ghosts and per-rank buffers included.
   metrics.set("bytes_per_particle",
-              static_cast<double>(memory_bytes()) / static_cast<double>(std::max<std::size_t>(store_.size(), 1)));
+              static_cast<double>(global_sum(static_cast<std::int64_t>(memory_bytes()))) /
+                  static_cast<double>(std::max<std::int64_t>(held, 1)));
   const bool closed = gravity_.isZero() && tally_.removed == 0 && settle_damping_ == 0 &&
                       field_->settings().drag_zones.empty();
   if (closed && initial_energy_ > 0)
-    metrics.set("energy_rel_drift", (mobile_kinetic_energy() - initial_energy_) / initial_energy_);
+    metrics.set("energy_rel_drift", (kinetic_energy - initial_energy_) / initial_energy_);
   if (placement_ == Placement::kCollision) {
     counts.set("collisions", tally_.collisions);
     metrics.set("restitution_target", restitution_target_);
@@ -1032,13 +1235,14 @@ void DemSystem::report(io::Json& counts, io::Json& metrics, double step_wall_s, 
     }
   }
   if (measure_flow_ && tally_.flow_time > 0)
-    metrics.set("mass_flow_rate", tally_.flow_mass / tally_.flow_time);
+    metrics.set("mass_flow_rate", global_sum(tally_.flow_mass) / tally_.flow_time);
   if (packing_window_) {
     const auto [a, b] = *packing_window_;
     double solid = 0;
     for (std::size_t i = 0; i < store_.size(); ++i)
       if (!store_.is_fixed(i))
         solid += volume_in_slab(domain_.dimension, store_.position[i].y(), store_.radius[i], a, b);
+    solid = global_sum(solid);
     const Vec3 L = domain_.length();
     metrics.set("packing_fraction", solid / (L.x() * (domain_.dimension == 3 ? L.z() : 1.0) * (b - a)));
   }
@@ -1047,7 +1251,7 @@ void DemSystem::report(io::Json& counts, io::Json& metrics, double step_wall_s, 
     const double depth = domain_.dimension == 3 ? domain_.length().z() : 1.0;
     if (area > 0)
       metrics.set("beta_below_slit",
-                  tally_.beta_volume / (static_cast<double>(tally_.beta_samples) * area * depth));
+                  global_sum(tally_.beta_volume) / (static_cast<double>(tally_.beta_samples) * area * depth));
     metrics.set("statistics_samples", static_cast<double>(tally_.beta_samples));
   }
 }
@@ -1062,8 +1266,9 @@ std::size_t DemSystem::memory_bytes() const {
 }
 
 std::string DemSystem::progress_note() const {
-  return fmt::format("N {}  contacts {}{}", mobile_count(), field_->contact_count(),
-                     tally_.settling ? "  settling" : "");
+  // Not collective: the contacts are this rank's when distributed.
+  return fmt::format("N {}  contacts {}{}{}", global_mobile_, field_->contact_count(),
+                     distributed_ ? " (rank 0)" : "", tally_.settling ? "  settling" : "");
 }
 
 }  // namespace grainwave::particles::dem

@@ -16,10 +16,17 @@
 //   flow        mass flow rate through a horizontal plane, bin statistics ([dem_statistics]),
 //               curtain-state file ([dem_curtain]); particles leaving an open face are removed.
 //
-// MPI: the store is replicated (every rank holds and steps all particles, rank 0 writes), so
-// results are identical on any number of ranks but do not speed up; a domain decomposition
-// with ghosts and migration (002 §3.2.6) is future work. The store is kept in id order (removals
-// compact it stably) so that a run restarted from a checkpoint — which holds the contact history
+// MPI (dem.decomposition): "slabs" (the default) cuts the box into slabs along
+// dem.decomposition_axis, balanced by particle count at the start, each rank stepping the
+// particles it owns with ghost copies of its neighbours' (particles/dem/SlabDecomposition);
+// "replicated" has every rank hold and step all particles. Either way the contact forces, and
+// so the trajectories, are bitwise those of one rank (ContactForceField explains why); sums
+// over particles (energy, mass through the flow plane, bin statistics) are added per rank and
+// then over ranks, so they agree with one rank to round-off. The collision placement always
+// runs replicated. Output and checkpoints hold every particle once, rank by rank (the `id`
+// dataset names them); a checkpoint restarts on any number of ranks, bit for bit on the number
+// that wrote it. The owned particles are kept in id order (removals compact them stably,
+// arrivals are merged in) so that a restart from a checkpoint — which holds the contact history
 // and the integrator's forces — continues bit for bit.
 #include "core/Parameters.hpp"
 #include "core/Scene.hpp"
@@ -29,6 +36,7 @@
 #include "particles/dem/BinStatistics.hpp"
 #include "particles/dem/ContactForceField.hpp"
 #include "particles/dem/Integrators.hpp"
+#include "particles/dem/SlabDecomposition.hpp"
 
 #include <array>
 #include <cstdint>
@@ -105,8 +113,19 @@ class DemSystem : public io::System {
   double surface_gap() const;
   /// Normal relative speed and acceleration of the colliding pair (or particle and nearest wall).
   std::pair<double, double> gap_rate_and_acceleration() const;
+  /// On this rank.
   double mobile_kinetic_energy() const;
   std::int64_t mobile_count() const;
+  /// Over all ranks (collective when distributed).
+  double global_sum(double local) const;
+  std::int64_t global_sum(std::int64_t local) const;
+  /// The bin statistics of all ranks added up (collective when distributed).
+  BinStatistics global_bins() const;
+  /// After a step: particles that left the slab go to their new owner (collective).
+  void migrate_particles();
+  /// Per-rank parts of the tally (sums over this rank's particles), for checkpoints.
+  std::vector<double> tally_partials() const;
+  void set_tally_partials(const std::vector<double>& partials);
   void write_curtain_state(const std::filesystem::path& folder) const;
 
   // Configuration.
@@ -142,6 +161,12 @@ class DemSystem : public io::System {
   std::array<double, 4> beta_window_{0, 0, 0, 0};  ///< x0, x1, y0, y1
   bool curtain_ = false;
   std::array<double, 2> curtain_window_{0, 0};     ///< y range of the particles written
+  // Domain decomposition.
+  bool distributed_ = false;           ///< slabs over more than one rank
+  SlabDecomposition decomposition_;
+  std::string decomposition_note_;     ///< for describe()
+  std::int64_t initial_fixed_ = 0;     ///< fixed particles at the start, all ranks
+  std::int64_t global_mobile_ = 0;     ///< moving particles after the last step, all ranks
 
   // State.
   ParticleStore store_, good_store_;

@@ -15,19 +15,25 @@ double stable_time_step(const ParticleStore& store, const NormalLaw& law, int st
   return tau / steps_per_collision;
 }
 
-void VelocityVerlet::step(ParticleStore& store, ContactForceField& field, double dt) {
-  if (!have_forces_ || force_.size() != store.size()) {
+void VelocityVerlet::step(ParticleStore& store, ContactForceField& field, double dt,
+                          const BeforeEvaluation& before_evaluation) {
+  // The slots this step moves: those held before any ghost is appended.
+  const std::size_t n = store.size();
+  auto evaluate = [&](HistoryStage stage) {
+    if (before_evaluation) before_evaluation(store);
+    field.evaluate(store, stage, dt);
+  };
+  if (!have_forces_ || force_.size() != n) {
     // Forces at t_n without advancing the tangential history (no time has passed yet).
-    field.evaluate(store, HistoryStage::kPredict, dt);
-    force_.assign(field.force().begin(), field.force().end());
-    torque_.assign(field.torque().begin(), field.torque().end());
+    evaluate(HistoryStage::kPredict);
+    force_.assign(field.force().begin(), field.force().begin() + static_cast<std::ptrdiff_t>(n));
+    torque_.assign(field.torque().begin(), field.torque().begin() + static_cast<std::ptrdiff_t>(n));
     have_forces_ = true;
   }
   // Kick and drift, then a second kick with the old forces: the velocities seen by the force
   // evaluation are the prediction v_n + Δt a_n of v_{n+1} rather than the half-step velocity,
   // so velocity-dependent forces (dashpots, drag) are second-order accurate; the final kick
   // swaps the old half of the acceleration for the new one. One fused loop.
-  const std::size_t n = store.size();
   old_force_.resize(n);
   old_torque_.resize(n);
   const Domain& domain = field.domain();
@@ -43,28 +49,33 @@ void VelocityVerlet::step(ParticleStore& store, ContactForceField& field, double
     store.velocity[i] += 2.0 * half_kick;
     store.angular_velocity[i] += (dt / store.inertia[i]) * t;
   }
-  field.evaluate(store, HistoryStage::kSingle, dt);
+  evaluate(HistoryStage::kSingle);
   const auto& f = field.force();
   const auto& t = field.torque();
-  for (std::size_t i = 0; i < store.size(); ++i) {
+  for (std::size_t i = 0; i < n; ++i) {
     const double inv_m = store.inverse_mass(i);
     if (inv_m == 0.0) continue;
     store.velocity[i] += (0.5 * dt * inv_m) * (f[i] - old_force_[i]);
     store.angular_velocity[i] += (0.5 * dt / store.inertia[i]) * (t[i] - old_torque_[i]);
   }
-  force_.assign(f.begin(), f.end());
-  torque_.assign(t.begin(), t.end());
+  force_.assign(f.begin(), f.begin() + static_cast<std::ptrdiff_t>(n));
+  torque_.assign(t.begin(), t.begin() + static_cast<std::ptrdiff_t>(n));
 }
 
-void RungeKutta2::step(ParticleStore& store, ContactForceField& field, double dt) {
+void RungeKutta2::step(ParticleStore& store, ContactForceField& field, double dt,
+                       const BeforeEvaluation& before_evaluation) {
   const std::size_t n = store.size();
+  auto evaluate = [&](HistoryStage stage) {
+    if (before_evaluation) before_evaluation(store);
+    field.evaluate(store, stage, dt);
+  };
   x0_.assign(store.position.begin(), store.position.end());
   v0_.assign(store.velocity.begin(), store.velocity.end());
   w0_.assign(store.angular_velocity.begin(), store.angular_velocity.end());
   a0_.resize(n);
   alpha0_.resize(n);
 
-  field.evaluate(store, HistoryStage::kPredict, dt);
+  evaluate(HistoryStage::kPredict);
   for (std::size_t i = 0; i < n; ++i) {
     const double inv_m = store.inverse_mass(i);
     if (inv_m == 0.0) continue;
@@ -76,7 +87,7 @@ void RungeKutta2::step(ParticleStore& store, ContactForceField& field, double dt
   }
   // The predicted positions are evaluated unwrapped: separations use the minimum image and the
   // cells wrap indices, so a centre slightly outside a periodic box is found correctly.
-  field.evaluate(store, HistoryStage::kCorrect, dt);
+  evaluate(HistoryStage::kCorrect);
   const Domain& domain = field.domain();
   for (std::size_t i = 0; i < n; ++i) {
     const double inv_m = store.inverse_mass(i);

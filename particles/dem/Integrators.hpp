@@ -8,12 +8,21 @@
 // The step is Δt = τ/N with the contact duration τ of 002 Eq. 3.17 (or the Hertz equivalent)
 // for the stiffest, lightest pair and N >= 50 by default (stable_time_step). Fixed particles
 // (kFixed) never move. Positions are wrapped into the box on periodic axes after each step.
+//
+// Domain decomposition: `before_evaluation`, when given, is called right before every force
+// evaluation with the state of that moment (the drifted or predicted positions); it appends the
+// ghosts the evaluation needs to the end of the store. The integrators move only the slots the
+// store held when the step began, and keep their forces; the caller strips the ghosts after.
 #include "particles/ParticleStore.hpp"
 #include "particles/dem/ContactForceField.hpp"
 
+#include <functional>
 #include <vector>
 
 namespace grainwave::particles::dem {
+
+/// Called before each force evaluation of a step (ghost exchange); may append slots.
+using BeforeEvaluation = std::function<void(ParticleStore&)>;
 
 /// τ/N where τ is the shortest binary contact duration among the movable particles: each paired
 /// with an identical particle (m*/2, R*/2) and with a wall (m, R).
@@ -22,7 +31,8 @@ double stable_time_step(const ParticleStore& store, const NormalLaw& law,
 
 class VelocityVerlet {
  public:
-  void step(ParticleStore& store, ContactForceField& field, double dt);
+  void step(ParticleStore& store, ContactForceField& field, double dt,
+            const BeforeEvaluation& before_evaluation = {});
   /// Call after particles were added or removed: forces are recomputed before the next kick.
   void reset() { have_forces_ = false; }
 
@@ -33,6 +43,9 @@ class VelocityVerlet {
   bool has_forces() const { return have_forces_; }
   const std::vector<Vec3>& forces() const { return force_; }
   const std::vector<Vec3>& torques() const { return torque_; }
+  /// The same, to be rearranged with the store's slots (migration between ranks).
+  std::vector<Vec3>& stored_forces() { return force_; }
+  std::vector<Vec3>& stored_torques() { return torque_; }
   void restore_forces(std::vector<Vec3> force, std::vector<Vec3> torque) {
     force_ = std::move(force);
     torque_ = std::move(torque);
@@ -47,7 +60,8 @@ class VelocityVerlet {
 
 class RungeKutta2 {
  public:
-  void step(ParticleStore& store, ContactForceField& field, double dt);
+  void step(ParticleStore& store, ContactForceField& field, double dt,
+            const BeforeEvaluation& before_evaluation = {});
 
  private:
   std::vector<Vec3> x0_, v0_, w0_, a0_, alpha0_;

@@ -56,12 +56,14 @@ int LinkedCells::upper_neighbours(std::size_t c, std::uint32_t* out, Vec3* shift
   return count;
 }
 
-void LinkedCells::build(const ParticleStore& store, const Domain& domain, double min_cell_width) {
+void LinkedCells::build(const ParticleStore& store, const Domain& domain, double min_cell_width,
+                        std::size_t grid_particles, const std::vector<std::uint32_t>* visit_order) {
   if (!(min_cell_width > 0.0))
     throw InputError({"linked cells", 0}, "cell_width", "must be > 0 (largest diameter)");
   const std::size_t n = store.size();
   const Vec3 length = domain.length();
-  const double max_cells = std::max(65536.0, 8.0 * static_cast<double>(n));
+  const double max_cells =
+      std::max(65536.0, 8.0 * static_cast<double>(grid_particles > 0 ? grid_particles : n));
   double width = min_cell_width;
   std::array<int, 3> cells{1, 1, 1};
   while (true) {
@@ -125,7 +127,11 @@ void LinkedCells::build(const ParticleStore& store, const Domain& domain, double
   }
   for (std::size_t c = 1; c < cell_start_.size(); ++c) cell_start_[c] += cell_start_[c - 1];
   // cell_start_[c] serves as the write cursor of cell c, then is shifted back to the start.
-  for (std::size_t i = 0; i < n; ++i) sorted_[cell_start_[cell_of_[i]]++] = static_cast<std::uint32_t>(i);
+  if (visit_order) {
+    for (const std::uint32_t i : *visit_order) sorted_[cell_start_[cell_of_[i]]++] = i;
+  } else {
+    for (std::size_t i = 0; i < n; ++i) sorted_[cell_start_[cell_of_[i]]++] = static_cast<std::uint32_t>(i);
+  }
   for (std::size_t c = cell_start_.size() - 1; c > 0; --c) cell_start_[c] = cell_start_[c - 1];
   cell_start_[0] = 0;
   // The packed copy is wrapped into the box on periodic axes: the per-cell shifts assume each

@@ -20,8 +20,13 @@ class LinkedCells {
  public:
   /// Sorts the particles into cells of width >= min_cell_width and packs their positions and
   /// radii in cell order. The grid is coarsened so it has at most max(2^16, 8 N) cells, which
-  /// keeps a large, sparse box cheap.
-  void build(const ParticleStore& store, const Domain& domain, double min_cell_width);
+  /// keeps a large, sparse box cheap; N is `grid_particles` when given (a domain-decomposed run
+  /// passes the global count, so every rank builds the serial run's grid), else the store size.
+  /// Within a cell the slots appear in the order of `visit_order` when given (a permutation of
+  /// the slots), else in slot order: a rank whose owned particles and ghosts each lie in id
+  /// order passes their merge by id, and then visits the touching pairs in the serial order.
+  void build(const ParticleStore& store, const Domain& domain, double min_cell_width,
+             std::size_t grid_particles = 0, const std::vector<std::uint32_t>* visit_order = nullptr);
 
   /// Calls f(i, j, d, |d|²) once for every unordered pair of slots whose spheres overlap, with
   /// d = x_j − x_i the minimum-image separation. Only the packed copy is read in the search.

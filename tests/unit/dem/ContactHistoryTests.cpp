@@ -49,17 +49,20 @@ TEST(ContactHistory, GrowsAndPurgesWithoutLosingLiveEntries) {
   EXPECT_LE(h.capacity(), 4096u);  // 1500 live entries fill at most half after a purge
 }
 
-TEST(ContactHistory, SurvivesSwappingSlots) {
-  // Two spheres pressed together and sheared: after swapping their slots (remove + re-add, as
-  // migration or deletion would) the next step sees the same stored displacement.
+namespace {
+/// Two spheres centred at centre_x -/+ 0.099 pressed together and sheared; after 20 steps the
+/// slots of one copy are swapped (remove + re-add, as migration or deletion would). Both copies
+/// must go on alike: the stored displacement is found by ids and read in the same orientation.
+void shear_pair_and_swap_slots(double centre_x) {
   gw::Domain domain;
   for (auto& axis : domain.face) axis = {gw::FaceKind::kOpen, gw::FaceKind::kOpen};
   domain.lo = Vec3::Constant(-1.0);
   domain.hi = Vec3::Constant(1.0);
   auto model = dem::make_contact_model("linear_spring_dashpot", {{"stiffness", 1e3}},
                                        "coulomb_spring", {{"stiffness", 1e3}, {"friction", 0.5}});
-  auto make_pair = [](gw::ParticleStore& s, bool swapped) {
-    const Vec3 xa(-0.099, 0, 0), xb(0.099, 0, 0);
+  auto make_pair = [centre_x](gw::ParticleStore& s, bool swapped) {
+    // y and z mid-cell, so the shear motion stays inside one cell row.
+    const Vec3 xa(centre_x - 0.099, 0.5, 0.5), xb(centre_x + 0.099, 0.5, 0.5);
     const Vec3 va(0, 0.01, 0), vb(0, -0.01, 0);
     if (!swapped) {
       s.add(10, xa, va, Vec3::Zero(), 0.1, 1.0, 0.004);
@@ -72,7 +75,9 @@ TEST(ContactHistory, SurvivesSwappingSlots) {
   gw::ParticleStore plain, swapped;
   make_pair(plain, false);
   make_pair(swapped, false);
-  dem::ContactForceField field_plain(model, domain), field_swapped(model, domain);
+  dem::ContactForceSettings settings;
+  settings.cell_width = 1.0;  // two cells along x: [-1, 0) and [0, 1)
+  dem::ContactForceField field_plain(model, domain, settings), field_swapped(model, domain, settings);
   dem::VelocityVerlet a, b;
   const double dt = 1e-4;
   for (int k = 0; k < 20; ++k) {
@@ -102,6 +107,21 @@ TEST(ContactHistory, SurvivesSwappingSlots) {
   dem::ContactForceField fresh(model, domain);
   fresh.evaluate(swapped, dem::HistoryStage::kPredict, dt);
   EXPECT_GT((fresh.force()[0] - field_swapped.force()[0]).norm(), 1e-6);
+}
+}  // namespace
+
+TEST(ContactHistory, SurvivesSwappingSlots) {
+  // The pair straddles the cell face at x = 0: the search meets it from the lower cell, the
+  // particle with id 10, whatever the slots.
+  shear_pair_and_swap_slots(0.0);
+}
+
+TEST(ContactHistory, OrientationFollowsIdsNotSlots) {
+  // Both centres in the cell [0, 1): the search meets the pair in slot order, so the swap turns
+  // it round. The stored displacement is kept as seen from the
+  // smaller id (ContactForceField's canonical orientation); read from the other side it would
+  // push the other way, and the two copies would part.
+  shear_pair_and_swap_slots(0.5);
 }
 
 TEST(ContactHistory, StoredDisplacementTurnsWithTheContactPlane) {

@@ -1,0 +1,116 @@
+// DEM throughput on several MPI ranks: the dense, sheared bed of bench_dem (20 384 spheres, ~6
+// contacts each, periodic in x and z, gravity tilted 25° so it flows along x) cut into slabs
+// along x (particles/dem/SlabDecomposition), stepped the way DemSystem steps it: ghost exchange
+// before each force evaluation, migration after each step. Run it as
+//   mpirun -np 1 build/bench/bench_dem_ranks [steps]
+//   mpirun -np 2 build/bench/bench_dem_ranks [steps]
+// (bench/dem_parallel_efficiency.py runs both and prints the 2-rank parallel efficiency). Prints
+// one line per tangential law: ranks, particle-steps/s, the share of the wall time spent in the
+// ghost exchange and the migration, ghosts per rank, migrations per step, bytes per particle.
+// Target (issue 7): 2-rank parallel efficiency >= 80 %.
+#include "core/Mpi.hpp"
+#include "particles/dem/ContactForceField.hpp"
+#include "particles/dem/Integrators.hpp"
+#include "particles/dem/SlabDecomposition.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <numbers>
+#include <random>
+#include <string>
+
+namespace gw = grainwave::particles;
+namespace dem = grainwave::particles::dem;
+namespace mpi = grainwave::mpi;
+using gw::Vec3;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+double seconds_since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+void run(const std::string& tangential, const dem::LawParameters& parameters, int steps) {
+  // The bed of bench_dem: simple cubic stack, spacing 0.98 d, d = 1, m = 1.
+  const int nx = 28, ny = 26, nz = 28;
+  const double spacing = 0.98;
+  gw::Domain domain;
+  domain.hi = Vec3(nx * spacing, 60.0, nz * spacing);
+  domain.face[1] = {gw::FaceKind::kWall, gw::FaceKind::kOpen};
+  gw::ParticleStore store;
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-0.1, 0.1);
+  std::int64_t id = 0;
+  for (int j = 0; j < ny; ++j)
+    for (int k = 0; k < nz; ++k)
+      for (int i = 0; i < nx; ++i)
+        store.add(id++, Vec3((i + 0.5) * spacing, 0.49 + j * spacing, (k + 0.5) * spacing),
+                  Vec3(u(rng), u(rng), u(rng)), Vec3::Zero(), 0.5, 1.0, gw::solid_inertia(3, 1.0, 0.5));
+  const auto total = static_cast<double>(store.size());
+  dem::ContactForceSettings settings;
+  const double tilt = 25.0 * std::numbers::pi / 180.0;
+  settings.gravity = Vec3(std::sin(tilt), -std::cos(tilt), 0.0);
+  settings.cell_width = 1.0;
+  settings.grid_particles = store.size();
+  auto model = dem::make_contact_model("linear_spring_dashpot",
+                                       {{"stiffness", 2.0e4}, {"restitution", 0.7}}, tangential, parameters);
+  const double dt = dem::stable_time_step(store, *model.normal, 50);
+  const int ranks = mpi::size();
+  dem::SlabDecomposition slabs(domain, 0, dem::SlabDecomposition::balanced_cuts(domain, 0, store, ranks),
+                               settings.cell_width);
+  slabs.keep_owned(store);
+  dem::ContactForceField field(model, domain, settings);
+  dem::VelocityVerlet integrator;
+  double exchange_s = 0, migration_s = 0;
+  std::int64_t ghosts = 0, migrated = 0;
+  auto with_ghosts = [&](gw::ParticleStore& s) {
+    const auto start = Clock::now();
+    slabs.exchange_ghosts(s);
+    exchange_s += seconds_since(start);
+    ghosts += static_cast<std::int64_t>(s.size() - integrator.forces().size());
+  };
+  auto step = [&] {
+    integrator.step(store, field, dt, with_ghosts);
+    dem::SlabDecomposition::strip_ghosts(store);
+    const auto start = Clock::now();
+    migrated += static_cast<std::int64_t>(
+        slabs.migrate(store, &integrator.stored_forces(), &integrator.stored_torques(),
+                      model.tangential->needs_history() ? &field.history() : nullptr));
+    migration_s += seconds_since(start);
+  };
+  for (int k = 0; k < 50; ++k) step();  // warm up, buffers reach their working size
+  exchange_s = migration_s = 0;
+  ghosts = migrated = 0;
+  MPI_Barrier(MPI_COMM_WORLD);
+  const auto start = Clock::now();
+  for (int k = 0; k < steps; ++k) step();
+  MPI_Barrier(MPI_COMM_WORLD);
+  const double wall = seconds_since(start);
+  const double exchange = mpi::max(exchange_s), migration = mpi::max(migration_s);
+  const double ghosts_per_rank = static_cast<double>(mpi::sum(ghosts)) / (2.0 * steps * ranks);
+  const double migrations = static_cast<double>(mpi::sum(migrated)) / steps;
+  const double history_bytes =
+      static_cast<double>(mpi::sum(static_cast<std::int64_t>(field.history().capacity())) *
+                          static_cast<std::int64_t>(dem::ContactHistory::bytes_per_entry())) / total;
+  const double bytes = static_cast<double>(gw::ParticleStore::bytes_per_particle()) + history_bytes +
+                       (static_cast<double>(field.contacts().capacity() * sizeof(dem::Contact)) * ranks) / total +
+                       4 * sizeof(Vec3) + sizeof(double) + 2 * sizeof(std::uint32_t) + 4 * sizeof(double);
+  if (mpi::is_root())
+    std::printf("%-16s ranks %d  %8.3g particle-steps/s  wall %6.2f s  ghost exchange %4.1f %%  "
+                "migration %4.1f %%  ghosts/rank %6.0f  migrations/step %5.2f  bytes/particle %5.0f\n",
+                tangential.c_str(), ranks, total * steps / wall, wall, 100 * exchange / wall,
+                100 * migration / wall, ghosts_per_rank, migrations, bytes);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  mpi::Session session(&argc, &argv);
+  const int steps = argc > 1 ? std::atoi(argv[1]) : 300;
+  run("static_friction", {{"friction", 0.5}}, steps);
+  run("coulomb_spring", {{"stiffness", 5.7e3}, {"friction", 0.5}}, steps);
+  return 0;
+}

@@ -1,0 +1,78 @@
+#pragma once
+// Domain decomposition of the DEM over MPI ranks (002 §3.2.6): the box is cut into slabs along
+// one axis, rank r owning the particles whose centres lie in [cut_r, cut_{r+1}). Each force
+// evaluation sees, besides the owned particles, ghost copies of the other ranks' particles whose
+// centres lie within `reach` (the largest contact distance, twice the largest radius) of the
+// rank's slab, across periodic faces too; after each step, particles whose centres left the slab
+// migrate to their new owner with the integrator's forces and every live contact-history entry
+// they take part in, so a contact's tangential spring continues across the move.
+//
+// Ordering, on which the bitwise equality with the serial run rests (ContactForceField): the
+// owned slots are kept in id order (arrivals are merged in), and ghosts are appended in id order.
+//
+// Cost per step: one all-to-all of the band particles before each force evaluation and one of
+// the migrants after the step; with a tangential law that keeps history, a scan of the history
+// table when some particle leaves. Slabs are fixed at the start, balanced by particle count.
+#include "core/Mpi.hpp"
+#include "particles/Domain.hpp"
+#include "particles/ParticleStore.hpp"
+#include "particles/dem/ContactHistory.hpp"
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+namespace grainwave::particles::dem {
+
+class SlabDecomposition {
+ public:
+  /// One rank owning everything: every call is a no-op.
+  SlabDecomposition() = default;
+  /// Slabs [cuts[r], cuts[r + 1]) along `axis`, one per rank of `comm` (cuts has P + 1 entries
+  /// from domain.lo to domain.hi); `reach` is the ghost band width.
+  SlabDecomposition(const Domain& domain, int axis, std::vector<double> cuts, double reach,
+                    MPI_Comm comm = MPI_COMM_WORLD);
+  /// Cuts that give each of `ranks` slabs about the same number of moving particles of `store`.
+  static std::vector<double> balanced_cuts(const Domain& domain, int axis, const ParticleStore& store,
+                                           int ranks);
+
+  bool active() const { return ranks_ > 1; }
+  int axis() const { return axis_; }
+  const std::vector<double>& cuts() const { return cuts_; }
+  /// The rank owning a particle centred at x.
+  int owner(const Vec3& x) const;
+
+  /// Keeps the slots this rank owns, in their order (after a placement made in full on every rank).
+  void keep_owned(ParticleStore& store) const;
+  /// Drops the ghosts at the end of the store.
+  static void strip_ghosts(ParticleStore& store);
+  /// Collective. Replaces the ghosts at the end of the store by copies, in id order, of the
+  /// other ranks' particles within reach of this slab at their present positions.
+  void exchange_ghosts(ParticleStore& store);
+  /// Collective, on a store without ghosts. Sends the particles whose centres left the slab to
+  /// their owners with their entries of `force`/`torque` (the integrator's, may be null) and of
+  /// `history` (may be null), receives the arrivals and merges them into id order. Returns the
+  /// number of particles that arrived.
+  std::size_t migrate(ParticleStore& store, std::vector<Vec3>* force, std::vector<Vec3>* torque,
+                      ContactHistory* history);
+
+ private:
+  /// Distance along the axis from coordinate s to rank r's slab (0 inside), periodic images
+  /// included.
+  double distance_to_slab(double s, int r) const;
+
+  Domain domain_;
+  int axis_ = 0;
+  std::vector<double> cuts_;
+  double reach_ = 0.0;
+  int ranks_ = 1, rank_ = 0;
+  MPI_Comm comm_ = MPI_COMM_WORLD;
+  // Scratch, reused between steps.
+  std::unique_ptr<mpi::Exchange> exchange_;
+  std::vector<std::uint8_t> keep_;
+  std::vector<std::int64_t> leaving_ids_;
+  std::vector<ContactHistoryEntry> entries_;
+  std::vector<std::uint32_t> order_;
+};
+
+}  // namespace grainwave::particles::dem
