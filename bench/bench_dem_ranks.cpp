@@ -98,6 +98,11 @@ void run(const std::string& tangential, const dem::LawParameters& parameters, in
   const double bytes = static_cast<double>(gw::ParticleStore::bytes_per_particle()) + history_bytes +
                        (static_cast<double>(field.contacts().capacity() * sizeof(dem::Contact)) * ranks) / total +
                        4 * sizeof(Vec3) + sizeof(double) + 2 * sizeof(std::uint32_t) + 4 * sizeof(double);
+  const double busy = wall - exchange_s - migration_s;  // this rank's own work, waits excluded
+  const double busiest = mpi::max(busy), least = mpi::min(busy);
+  if (mpi::is_root() && ranks > 1)
+    std::printf("%-16s ranks %d  work per rank (wall minus exchanges): %.2f to %.2f s (imbalance %.1f %%)\n",
+                tangential.c_str(), ranks, least, busiest, 100 * (busiest / least - 1));
   if (mpi::is_root())
     std::printf("%-16s ranks %d  %8.3g particle-steps/s  wall %6.2f s  ghost exchange %4.1f %%  "
                 "migration %4.1f %%  ghosts/rank %6.0f  migrations/step %5.2f  bytes/particle %5.0f\n",

@@ -99,7 +99,12 @@ void ContactHistory::live_entries_of(const std::vector<std::int64_t>& sorted_ids
 }
 
 void ContactHistory::adopt(const ContactHistoryEntry& entry) {
-  if (!live(entry) || find(entry.first, entry.second)) return;
+  if (!live(entry)) return;
+  // A live copy here that was touched as recently is the same contact computed alike; an older
+  // one (this rank stopped seeing the pair a step ago) gives way to the sender's.
+  if (const ContactHistoryEntry* here = find(entry.first, entry.second);
+      here && here->last_step >= entry.last_step)
+    return;
   if (slots_.empty() || nearly_full()) make_room();
   std::size_t k = home(entry.first, entry.second);
   while (slots_[k].last_step >= 0 &&

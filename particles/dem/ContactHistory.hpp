@@ -55,8 +55,8 @@ class ContactHistory {
   /// the history that travels with particles migrating to another rank.
   void live_entries_of(const std::vector<std::int64_t>& sorted_ids,
                        std::vector<ContactHistoryEntry>& out) const;
-  /// Takes over an entry from another rank, unless the pair is live here already (then this
-  /// rank has been computing the same contact as a pair with a ghost, with the same values).
+  /// Takes over an entry from another rank, unless the pair is live here and was touched as
+  /// recently (then this rank has been computing the same contact, with the same values).
   void adopt(const ContactHistoryEntry& entry);
   /// Replaces the table by `entries` at step counter `step` (a restart). Entries land in other
   /// slots than before, which changes nothing: lookups go by the id pair.

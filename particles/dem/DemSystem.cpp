@@ -222,8 +222,11 @@ void DemSystem::declare(SceneSchema& schema) {
          "on more than one MPI rank: slabs (each rank owns the particles of a slab along "
          "decomposition_axis, with ghosts of its neighbours) or replicated (every rank steps all)")
       .one_of({"slabs", "replicated"});
-  s.text("decomposition_axis", "x", "axis cut into slabs (balanced by particle count at the start)")
+  s.text("decomposition_axis", "x", "axis cut into slabs (balanced by particle count)")
       .one_of({"x", "y", "z"});
+  s.integer("rebalance_every", 1000,
+            "slabs: steps between re-cuts balancing the particle count (0: only at the start)")
+      .at_least(0);
 
   auto& w = schema.section("dem_wall",
                            "A wall of the DEM: an infinite plane or a segment of the x-y plane "
@@ -359,6 +362,7 @@ DemSystem::DemSystem(const Scene& scene) : scene_(scene) {
     decomposition_ = SlabDecomposition(domain_, axis, cuts, 2 * largest);
     decomposition_.keep_owned(store_);
     distributed_ = true;
+    rebalance_every_ = s.integer("rebalance_every");
     std::string list;
     for (double c : cuts) list += fmt::format("{}{:.4g}", list.empty() ? "" : ", ", c);
     decomposition_note_ = fmt::format(", {} slabs along {} (cuts {})", mpi::size(), axis_name, list);
@@ -638,6 +642,12 @@ void DemSystem::advance(double /*t*/, double dt) {
   if (placement_ == Placement::kCollision) probe_collision(dt);
   remove_leaving_particles();
   if (distributed_) {
+    // Re-cut the slabs now and then, so that a bed that settles or drains stays balanced; the
+    // cuts follow from the positions alone, the same on every rank and in every run.
+    if (rebalance_every_ > 0 && ++tally_.steps_since_balance >= rebalance_every_) {
+      decomposition_.set_cuts(decomposition_.rebalanced_cuts(store_));
+      tally_.steps_since_balance = 0;
+    }
     migrate_particles();
     global_mobile_ = mpi::sum(mobile_count());
   } else {
@@ -926,6 +936,7 @@ void visit_tally(Tally& t, F&& f) {
   f("last_sample", t.last_sample);
   f("beta_volume", t.beta_volume);
   f("beta_samples", t.beta_samples);
+  f("steps_since_balance", t.steps_since_balance);
 }
 
 void write_particles(io::Hdf5Group& g, const ParticleStore& s, bool full, bool distributed,
@@ -1092,6 +1103,7 @@ void DemSystem::write_checkpoint(io::Hdf5Group& group) {
   write_array(g, "bins_raw", bins_.raw(), 6, distributed_);
   g.set_attribute("bins_samples", static_cast<std::int64_t>(bins_.samples()));
   g.set_attribute("ranks", static_cast<std::int64_t>(distributed_ ? mpi::size() : 1));
+  if (distributed_) write_replicated(g, "slab_cuts", decomposition_.cuts(), 1);
   write_replicated(g, "sample_position", flatten(sample_position_), 3);
   std::vector<std::int64_t> seen(sample_seen_.begin(), sample_seen_.end());
   write_replicated(g, "sample_seen", seen, 1);
@@ -1111,6 +1123,10 @@ void DemSystem::read_checkpoint(const io::Hdf5Group& group) {
   const auto flags = read_all_integer(g, "flags");
   auto force = unflatten(read_all_real(g, "integrator_force"));
   auto torque = unflatten(read_all_real(g, "integrator_torque"));
+  // The slabs as they were, when as many ranks wrote the file (else the cuts of the start).
+  if (const auto cuts = read_all_real(g, "slab_cuts");
+      distributed_ && cuts.size() == decomposition_.cuts().size())
+    decomposition_.set_cuts(cuts);
   // Every rank reads all particles and keeps those in its slab, in id order.
   std::vector<std::size_t> mine;
   for (std::size_t i = 0; i < ids.size(); ++i)
@@ -1128,6 +1144,7 @@ void DemSystem::read_checkpoint(const io::Hdf5Group& group) {
     }
   }
   visit_tally(tally_, [&](const char* name, auto& value) {
+    if (!g.has_attribute(name)) return;  // written before the field existed: its start value
     if constexpr (std::is_same_v<std::decay_t<decltype(value)>, double>) value = g.real_attribute(name);
     else value = g.integer_attribute(name);
   });
@@ -1150,7 +1167,7 @@ void DemSystem::read_checkpoint(const io::Hdf5Group& group) {
   if (!force.empty()) verlet_.restore_forces(std::move(my_force), std::move(my_torque));
   else verlet_.reset();
   // The history entries of the contacts this rank computes: those of an owned particle (once,
-  // though a contact between two ranks was written by both).
+  // though a contact between two ranks was written by both, the later copy).
   std::vector<std::int64_t> owned_ids(store_.id.begin(), store_.id.end());
   const auto keys = read_all_integer(g, "history_keys");
   const auto values = read_all_real(g, "history_values");
@@ -1167,8 +1184,10 @@ void DemSystem::read_checkpoint(const io::Hdf5Group& group) {
                       std::binary_search(owned_ids.begin(), owned_ids.end(), e.second);
     if (ours) entries.push_back(e);
   }
+  // Of two copies of a pair (written by two ranks) the one touched last is the current one.
   auto pair_less = [](const ContactHistoryEntry& a, const ContactHistoryEntry& b) {
-    return a.first != b.first ? a.first < b.first : a.second < b.second;
+    if (a.first != b.first) return a.first < b.first;
+    return a.second != b.second ? a.second < b.second : a.last_step > b.last_step;
   };
   std::stable_sort(entries.begin(), entries.end(), pair_less);
   entries.erase(std::unique(entries.begin(), entries.end(),
@@ -1207,7 +1226,12 @@ void DemSystem::report(io::Json& counts, io::Json& metrics, double step_wall_s, 
   counts.set("fixed_particles", held - mobile);
   counts.set("particles_removed", global_sum(tally_.removed));
   counts.set("contacts", global_sum(static_cast<std::int64_t>(field_->contact_count())));
-  if (distributed_) counts.set("ranks_in_slabs", static_cast<std::int64_t>(mpi::size()));
+  if (distributed_) {
+    counts.set("ranks_in_slabs", static_cast<std::int64_t>(mpi::size()));
+    // Moving particles per rank, the work each carries: how well the cuts balance it.
+    counts.set("slab_particles_min", -mpi::max(-mobile_count()));
+    counts.set("slab_particles_max", mpi::max(mobile_count()));
+  }
   metrics.set("time_step", dt_);
   metrics.set("kinetic_energy", kinetic_energy);
   if (tally_.opened_at >= 0) metrics.set("gate_opened_at", tally_.opened_at);

@@ -97,6 +97,7 @@ class DemSystem : public io::System {
     double last_sample = -1;         ///< statistics: time of the last sample (-1: none)
     double beta_volume = 0;          ///< statistics: Σ V_p in the β window
     std::int64_t beta_samples = 0;
+    std::int64_t steps_since_balance = 0;  ///< domain decomposition: steps since the cuts were set
   };
 
   void read_contact_model(const SceneSection& s);
@@ -164,6 +165,7 @@ class DemSystem : public io::System {
   // Domain decomposition.
   bool distributed_ = false;           ///< slabs over more than one rank
   SlabDecomposition decomposition_;
+  std::int64_t rebalance_every_ = 0;   ///< steps between re-cuts of the slabs (0: never)
   std::string decomposition_note_;     ///< for describe()
   std::int64_t initial_fixed_ = 0;     ///< fixed particles at the start, all ranks
   std::int64_t global_mobile_ = 0;     ///< moving particles after the last step, all ranks

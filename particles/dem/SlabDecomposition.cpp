@@ -70,11 +70,40 @@ SlabDecomposition::SlabDecomposition(const Domain& domain, int axis, std::vector
   exchange_ = std::make_unique<mpi::Exchange>(comm);
 }
 
-std::vector<double> SlabDecomposition::balanced_cuts(const Domain& domain, int axis,
-                                                     const ParticleStore& store, int ranks) {
+namespace {
+std::vector<double> moving_coordinates(const ParticleStore& store, int axis) {
   std::vector<double> s;  // the moving particles carry the work
   for (std::size_t i = 0; i < store.size(); ++i)
-    if (!store.is_fixed(i)) s.push_back(store.position[i][axis]);
+    if (!store.is_fixed(i) && (store.flags[i] & kGhost) == 0) s.push_back(store.position[i][axis]);
+  return s;
+}
+}  // namespace
+
+std::vector<double> SlabDecomposition::balanced_cuts(const Domain& domain, int axis,
+                                                     const ParticleStore& store, int ranks) {
+  return balanced_cuts(domain, axis, moving_coordinates(store, axis), ranks);
+}
+
+std::vector<double> SlabDecomposition::rebalanced_cuts(const ParticleStore& store) const {
+  if (ranks_ == 1) return cuts_;
+  // Wrapped into the box, so that a centre a hair outside a periodic face counts in its slab.
+  std::vector<double> mine;
+  for (std::size_t i = 0; i < store.size(); ++i)
+    if (!store.is_fixed(i) && (store.flags[i] & kGhost) == 0) {
+      Vec3 x = store.position[i];
+      domain_.wrap(x);
+      mine.push_back(x[axis_]);
+    }
+  return balanced_cuts(domain_, axis_, mpi::all_gather(mine, comm_), ranks_);
+}
+
+void SlabDecomposition::set_cuts(std::vector<double> cuts) {
+  if (cuts.size() != cuts_.size()) throw std::logic_error("SlabDecomposition: one slab per rank");
+  cuts_ = std::move(cuts);
+}
+
+std::vector<double> SlabDecomposition::balanced_cuts(const Domain& domain, int axis,
+                                                     std::vector<double> s, int ranks) {
   std::sort(s.begin(), s.end());
   std::vector<double> cuts{domain.lo[axis]};
   for (int r = 1; r < ranks; ++r) {
@@ -157,21 +186,25 @@ std::size_t SlabDecomposition::migrate(ParticleStore& store, std::vector<Vec3>* 
   const std::size_t n = store.size();
   const bool with_forces = force && torque && force->size() == n && torque->size() == n;
   exchange_->clear();
-  keep_.assign(n, 1);
+  leaving_.clear();
   leaving_ids_.clear();
+  // Centres inside the slab stay (a periodic axis keeps them wrapped into the box).
+  const double a = cuts_[static_cast<std::size_t>(rank_)];
+  const double b = cuts_[static_cast<std::size_t>(rank_) + 1];
   for (std::size_t i = 0; i < n; ++i) {
+    const double s = store.position[i][axis_];
+    if (s >= a && s < b) continue;
     const int r = owner(store.position[i]);
     if (r == rank_) continue;
-    keep_[i] = 0;
+    leaving_.push_back({i, r});
     leaving_ids_.push_back(store.id[i]);
   }
   // Each destination's buffer: particle count, the particles (with the integrator's force and
   // torque), entry count, the history entries of those particles.
-  std::vector<std::size_t> particle_count(static_cast<std::size_t>(ranks_), 0);
+  particle_count_.assign(static_cast<std::size_t>(ranks_), 0);
+  auto& particle_count = particle_count_;
   for (int r = 0; r < ranks_; ++r) exchange_->outgoing(r).push_back(0.0);
-  for (std::size_t i = 0; i < n; ++i) {
-    if (keep_[i]) continue;
-    const int r = owner(store.position[i]);
+  for (const auto& [i, r] : leaving_) {
     auto& out = exchange_->outgoing(r);
     pack_particle(store, i, out);
     const Vec3 f = with_forces ? (*force)[i] : Vec3::Zero();
@@ -195,8 +228,9 @@ std::size_t SlabDecomposition::migrate(ParticleStore& store, std::vector<Vec3>* 
   }
   exchange_->exchange();
 
-  const bool any_left = std::find(keep_.begin(), keep_.end(), 0) != keep_.end();
-  if (any_left) {
+  if (!leaving_.empty()) {
+    keep_.assign(n, 1);
+    for (const auto& leaver : leaving_) keep_[leaver.first] = 0;
     store.keep_where(keep_);
     if (with_forces) {
       std::size_t out = 0;

@@ -12,7 +12,9 @@
 //
 // Cost per step: one all-to-all of the band particles before each force evaluation and one of
 // the migrants after the step; with a tangential law that keeps history, a scan of the history
-// table when some particle leaves. Slabs are fixed at the start, balanced by particle count.
+// table when some particle leaves. The cuts are balanced by particle count at the start and, if
+// the caller asks (DemSystem: dem.rebalance_every), again from time to time; being computed
+// from positions alone, they are the same on every rank and in every run.
 #include "core/Mpi.hpp"
 #include "particles/Domain.hpp"
 #include "particles/ParticleStore.hpp"
@@ -20,6 +22,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <utility>
 #include <vector>
 
 namespace grainwave::particles::dem {
@@ -35,6 +38,14 @@ class SlabDecomposition {
   /// Cuts that give each of `ranks` slabs about the same number of moving particles of `store`.
   static std::vector<double> balanced_cuts(const Domain& domain, int axis, const ParticleStore& store,
                                            int ranks);
+  /// The same from the particles' coordinates along the axis (any order).
+  static std::vector<double> balanced_cuts(const Domain& domain, int axis,
+                                           std::vector<double> coordinates, int ranks);
+  /// Collective: cuts balanced by the moving particles of every rank's `store` (a rebalance;
+  /// the particles then migrate to their new owners with migrate()).
+  std::vector<double> rebalanced_cuts(const ParticleStore& store) const;
+  /// New cuts (P + 1 values from lo to hi); the particles move at the next migrate().
+  void set_cuts(std::vector<double> cuts);
 
   bool active() const { return ranks_ > 1; }
   int axis() const { return axis_; }
@@ -70,6 +81,8 @@ class SlabDecomposition {
   // Scratch, reused between steps.
   std::unique_ptr<mpi::Exchange> exchange_;
   std::vector<std::uint8_t> keep_;
+  std::vector<std::pair<std::size_t, int>> leaving_;  ///< slot and new owner
+  std::vector<std::size_t> particle_count_;
   std::vector<std::int64_t> leaving_ids_;
   std::vector<ContactHistoryEntry> entries_;
   std::vector<std::uint32_t> order_;

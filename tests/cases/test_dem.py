@@ -298,6 +298,28 @@ def dense_bed_on_1_and_2_ranks():
             expect(same, f"written by 2 ranks, restarted on {ranks}: the state is bitwise that of the uninterrupted run")
 
 
+def slabs_follow_a_settling_bed():
+    """dem_settle cut along y (the direction it settles in) on 2 ranks: the fill collapses
+    downwards, so cuts fixed at the start would leave the upper slab nearly empty; re-cut every
+    500 steps by particle count, the two slabs stay balanced. Either way the state is bitwise
+    that of 1 rank."""
+    common = ["run.t_end=0.1", 'dem.decomposition_axis="y"', "output.interval=0.05"]
+    one, _ = run_case("dem_settle", *common, tag="_y1")
+    balanced, s = run_case("dem_settle", *common, "dem.rebalance_every=500", ranks=2, tag="_y2")
+    fixed, f = run_case("dem_settle", *common, "dem.rebalance_every=0", ranks=2, tag="_y2fixed")
+    ratio = s["counts"]["slab_particles_max"] / s["counts"]["slab_particles_min"]
+    ratio_fixed = f["counts"]["slab_particles_max"] / f["counts"]["slab_particles_min"]
+    expect(ratio <= 1.1, f"re-cut slabs hold {s['counts']['slab_particles_min']} and "
+           f"{s['counts']['slab_particles_max']} particles (ratio {ratio:.3f})")
+    expect(ratio_fixed > 1.2, f"without re-cuts the slabs would hold {f['counts']['slab_particles_min']} and "
+           f"{f['counts']['slab_particles_max']} (ratio {ratio_fixed:.3f})")
+    last = lambda d: sorted(glob.glob(os.path.join(d, "output_*.h5")))[-1]
+    for label, out in (("re-cut", balanced), ("fixed", fixed)):
+        with h5py.File(last(one)) as a, h5py.File(last(out)) as b:
+            same = all(np.array_equal(by_id(a, k), by_id(b, k)) for k in ("id", "position", "velocity", "angular_velocity"))
+            expect(same, f"{label} slabs along y: the state is bitwise that of 1 rank")
+
+
 def read_statistics_csv(out):
     with open(os.path.join(out, "statistics.csv")) as f:
         return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
@@ -353,4 +375,5 @@ if __name__ == "__main__":
                                   hopper_drain_on_2_ranks, curtain_small_state,
                                   channel_small_plug_flow, channel_full, curtain_full,
                                   hopper_restart_bitwise, dense_bed_on_1_and_2_ranks,
+                                  slabs_follow_a_settling_bed,
                                   rough_hopper_walls]})

@@ -168,3 +168,24 @@ TEST(ContactHistory, StoredDisplacementTurnsWithTheContactPlane) {
   const Eigen::Matrix3d swing = Eigen::Quaterniond::FromTwoVectors(n1, n2).toRotationMatrix();
   EXPECT_LT((after - swing * before).norm(), theta * theta * before.norm());
 }
+
+TEST(ContactHistory, AdoptedEntryReplacesAnOlderCopyOnly) {
+  // Migration between ranks: the receiving rank may still hold a live copy of the pair from a
+  // step ago (it stopped seeing the pair when both particles were the sender's). The sender's
+  // copy, touched this step, must win; a copy as old as the local one must not replace it.
+  dem::ContactHistory here;
+  here.make_room();
+  here.begin_step();  // step 1
+  here.touch(3, 7)->displacement = Vec3(1, 0, 0);
+  here.begin_step();  // step 2: the local copy is a step old, still live
+  const dem::ContactHistoryEntry newer{3, 7, 2, Vec3(2, 0, 0), Vec3::Zero(), false};
+  const dem::ContactHistoryEntry older{3, 7, 1, Vec3(5, 0, 0), Vec3::Zero(), false};
+  here.adopt(older);
+  EXPECT_EQ(here.find(3, 7)->displacement, Vec3(1, 0, 0));
+  here.adopt(newer);
+  EXPECT_EQ(here.find(3, 7)->displacement, Vec3(2, 0, 0));
+  EXPECT_EQ(here.find(3, 7)->last_step, 2);
+  EXPECT_EQ(here.live_count(), 1u);
+  here.adopt(dem::ContactHistoryEntry{4, 9, 2, Vec3(0, 3, 0), Vec3::Zero(), false});
+  EXPECT_EQ(here.find(4, 9)->displacement, Vec3(0, 3, 0));
+}
