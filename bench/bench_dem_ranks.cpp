@@ -114,7 +114,8 @@ void run(const std::string& tangential, const dem::LawParameters& parameters, in
 
 int main(int argc, char** argv) {
   mpi::Session session(&argc, &argv);
-  const int steps = argc > 1 ? std::atoi(argv[1]) : 300;
+  const int given = argc > 1 ? std::atoi(argv[1]) : 0;
+  const int steps = given > 0 ? given : 300;
   run("static_friction", {{"friction", 0.5}}, steps);
   run("coulomb_spring", {{"stiffness", 5.7e3}, {"friction", 0.5}}, steps);
   return 0;

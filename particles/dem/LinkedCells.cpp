@@ -125,7 +125,12 @@ void LinkedCells::build(const ParticleStore& store, const Domain& domain, double
     cell_of_[i] = cell;
     ++cell_start_[cell + 1];
   }
-  for (std::size_t c = 1; c < cell_start_.size(); ++c) cell_start_[c] += cell_start_[c - 1];
+  occupied_.clear();
+  occupied_.reserve(n);  // at most one per particle: no allocation once at working size
+  for (std::size_t c = 1; c < cell_start_.size(); ++c) {
+    if (cell_start_[c] != 0) occupied_.push_back(static_cast<std::uint32_t>(c - 1));
+    cell_start_[c] += cell_start_[c - 1];
+  }
   // cell_start_[c] serves as the write cursor of cell c, then is shifted back to the start.
   if (visit_order) {
     for (const std::uint32_t i : *visit_order) sorted_[cell_start_[cell_of_[i]]++] = i;

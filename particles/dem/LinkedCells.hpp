@@ -38,12 +38,10 @@ class LinkedCells {
   /// Same for pairs closer than r_i + r_j + margin (the margin must fit in the cell width).
   template <class PairFunction>
   void for_each_pair_within(double margin, PairFunction&& f) const {
-    const std::size_t n_cells = cell_start_.size() - 1;
     std::uint32_t neighbours[26];
     Vec3 shifts[26];
-    for (std::size_t c = 0; c < n_cells; ++c) {
+    for (const std::uint32_t c : occupied_) {  // ascending: the order of a sweep over all cells
       const std::uint32_t begin = cell_start_[c], end = cell_start_[c + 1];
-      if (begin == end) continue;
       for (std::uint32_t a = begin; a < end; ++a)
         for (std::uint32_t b = a + 1; b < end; ++b) test_pair(a, b, Vec3::Zero(), margin, f);
       const int count = interior_[c] ? interior_neighbours(c, neighbours, shifts)
@@ -110,6 +108,9 @@ class LinkedCells {
   std::vector<std::uint32_t> sorted_;
   std::vector<PackedParticle> packed_;
   std::vector<std::uint8_t> interior_;  ///< per cell: no neighbour crosses a box face
+  /// The cells holding particles, ascending: a sparse box (a hopper, a curtain, a rank's slab
+  /// of the whole grid) sweeps only these.
+  std::vector<std::uint32_t> occupied_;
   std::array<long, 13> interior_offsets_{};
   int interior_count_ = 0;
 };
