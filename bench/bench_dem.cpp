@@ -5,13 +5,13 @@
 // Targets on one core: 1.5e7 and 1e7 particle-steps/s.
 #include "particles/dem/ContactForceField.hpp"
 #include "particles/dem/Integrators.hpp"
+#include "bench/DenseBed.hpp"
 
 #include <benchmark/benchmark.h>
 
 #include <cmath>
 #include <numbers>
 #include <cstdio>
-#include <random>
 
 namespace gw = grainwave::particles;
 namespace dem = grainwave::particles::dem;
@@ -24,24 +24,9 @@ struct Bed {
   gw::Domain domain;
 };
 
-/// Simple cubic stack with spacing 0.98 d (each sphere overlaps its six neighbours slightly),
-/// random velocities; 28 × 28 × 26 = 20 384 particles, d = 1, m = 1.
 Bed make_bed() {
   Bed bed;
-  const int nx = 28, ny = 26, nz = 28;
-  const double spacing = 0.98;
-  bed.domain.lo = Vec3::Zero();
-  bed.domain.hi = Vec3(nx * spacing, 60.0, nz * spacing);
-  bed.domain.face[1] = {gw::FaceKind::kWall, gw::FaceKind::kOpen};
-  std::mt19937 rng(3);
-  std::uniform_real_distribution<double> u(-0.1, 0.1);
-  std::int64_t id = 0;
-  for (int j = 0; j < ny; ++j)
-    for (int k = 0; k < nz; ++k)
-      for (int i = 0; i < nx; ++i)
-        bed.store.add(id++, Vec3((i + 0.5) * spacing, 0.49 + j * spacing, (k + 0.5) * spacing),
-                      Vec3(u(rng), u(rng), u(rng)), Vec3::Zero(), 0.5, 1.0,
-                      gw::solid_inertia(3, 1.0, 0.5));
+  grainwave::bench::make_dense_bed(bed.store, bed.domain);
   return bed;
 }
 

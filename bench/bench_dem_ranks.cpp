@@ -12,13 +12,13 @@
 #include "particles/dem/ContactForceField.hpp"
 #include "particles/dem/Integrators.hpp"
 #include "particles/dem/SlabDecomposition.hpp"
+#include "bench/DenseBed.hpp"
 
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <numbers>
-#include <random>
 #include <string>
 
 namespace gw = grainwave::particles;
@@ -34,21 +34,9 @@ double seconds_since(Clock::time_point start) {
 }
 
 void run(const std::string& tangential, const dem::LawParameters& parameters, int steps) {
-  // The bed of bench_dem: simple cubic stack, spacing 0.98 d, d = 1, m = 1.
-  const int nx = 28, ny = 26, nz = 28;
-  const double spacing = 0.98;
   gw::Domain domain;
-  domain.hi = Vec3(nx * spacing, 60.0, nz * spacing);
-  domain.face[1] = {gw::FaceKind::kWall, gw::FaceKind::kOpen};
   gw::ParticleStore store;
-  std::mt19937 rng(3);
-  std::uniform_real_distribution<double> u(-0.1, 0.1);
-  std::int64_t id = 0;
-  for (int j = 0; j < ny; ++j)
-    for (int k = 0; k < nz; ++k)
-      for (int i = 0; i < nx; ++i)
-        store.add(id++, Vec3((i + 0.5) * spacing, 0.49 + j * spacing, (k + 0.5) * spacing),
-                  Vec3(u(rng), u(rng), u(rng)), Vec3::Zero(), 0.5, 1.0, gw::solid_inertia(3, 1.0, 0.5));
+  grainwave::bench::make_dense_bed(store, domain);
   const auto total = static_cast<double>(store.size());
   dem::ContactForceSettings settings;
   const double tilt = 25.0 * std::numbers::pi / 180.0;

@@ -68,16 +68,28 @@ std::string broadcast(const std::string& value, int root, MPI_Comm comm) {
   return result;
 }
 
+namespace {
+/// Every rank's count of `n`, and where each rank's part starts in the concatenation.
+struct GatherLayout {
+  std::vector<int> counts, offsets;
+  int total = 0;
+};
+GatherLayout gather_layout(int n, MPI_Comm comm) {
+  const auto p = static_cast<std::size_t>(size(comm));
+  GatherLayout layout{std::vector<int>(p), std::vector<int>(p), 0};
+  MPI_Allgather(&n, 1, MPI_INT, layout.counts.data(), 1, MPI_INT, comm);
+  for (std::size_t i = 0; i < p; ++i) {
+    layout.offsets[i] = layout.total;
+    layout.total += layout.counts[i];
+  }
+  return layout;
+}
+}  // namespace
+
 std::vector<std::string> all_gather(const std::string& value, MPI_Comm comm) {
   const int p = size(comm);
-  int n = static_cast<int>(value.size());
-  std::vector<int> counts(static_cast<std::size_t>(p)), offsets(static_cast<std::size_t>(p));
-  MPI_Allgather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, comm);
-  int total = 0;
-  for (int i = 0; i < p; ++i) {
-    offsets[static_cast<std::size_t>(i)] = total;
-    total += counts[static_cast<std::size_t>(i)];
-  }
+  const int n = static_cast<int>(value.size());
+  const auto [counts, offsets, total] = gather_layout(n, comm);
   std::string all(static_cast<std::size_t>(total), '\0');
   MPI_Allgatherv(value.data(), n, MPI_CHAR, all.data(), counts.data(), offsets.data(), MPI_CHAR,
                  comm);
@@ -89,15 +101,8 @@ std::vector<std::string> all_gather(const std::string& value, MPI_Comm comm) {
 }
 
 std::vector<double> all_gather(const std::vector<double>& values, MPI_Comm comm) {
-  const int p = size(comm);
   const int n = static_cast<int>(values.size());
-  std::vector<int> counts(static_cast<std::size_t>(p)), offsets(static_cast<std::size_t>(p));
-  MPI_Allgather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, comm);
-  int total = 0;
-  for (int i = 0; i < p; ++i) {
-    offsets[static_cast<std::size_t>(i)] = total;
-    total += counts[static_cast<std::size_t>(i)];
-  }
+  const auto [counts, offsets, total] = gather_layout(n, comm);
   std::vector<double> all(static_cast<std::size_t>(total));
   MPI_Allgatherv(values.data(), n, MPI_DOUBLE, all.data(), counts.data(), offsets.data(),
                  MPI_DOUBLE, comm);

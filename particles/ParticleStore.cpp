@@ -74,13 +74,6 @@ void ParticleStore::append_from(const ParticleStore& other, std::size_t i) {
 
 namespace {
 template <class T>
-void keep_slots(std::vector<T>& v, const std::vector<std::uint8_t>& keep) {
-  std::size_t out = 0;
-  for (std::size_t i = 0; i < v.size(); ++i)
-    if (keep[i]) v[out++] = v[i];
-  v.resize(out);
-}
-template <class T>
 void permute_slots(std::vector<T>& v, const std::vector<std::uint32_t>& order) {
   std::vector<T> old(v);
   for (std::size_t k = 0; k < order.size(); ++k) v[k] = old[order[k]];

@@ -27,6 +27,15 @@ inline double solid_inertia(int dimension, double mass, double radius) {
   return (dimension == 2 ? 0.5 : 0.4) * mass * radius * radius;
 }
 
+/// Keeps the entries i of a per-slot array with keep[i] != 0, in their order (stable compaction).
+template <class T>
+void keep_slots(std::vector<T>& v, const std::vector<std::uint8_t>& keep) {
+  std::size_t out = 0;
+  for (std::size_t i = 0; i < v.size(); ++i)
+    if (keep[i]) v[out++] = v[i];
+  v.resize(out);
+}
+
 struct ParticleStore {
   std::vector<Vec3> position;
   std::vector<Vec3> velocity;

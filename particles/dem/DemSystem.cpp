@@ -134,15 +134,6 @@ std::vector<Vec3> unflatten(const std::vector<double>& flat) {
   for (std::size_t i = 0; i < out.size(); ++i) out[i] = Vec3(flat[3 * i], flat[3 * i + 1], flat[3 * i + 2]);
   return out;
 }
-
-/// Removes the slots with keep[i] == 0 from a per-slot array, preserving order.
-template <class T>
-void compact(std::vector<T>& v, const std::vector<std::uint8_t>& keep) {
-  std::size_t out = 0;
-  for (std::size_t i = 0; i < v.size(); ++i)
-    if (keep[i]) v[out++] = v[i];
-  v.resize(out);
-}
 }  // namespace
 
 void DemSystem::declare(SceneSchema& schema) {
@@ -771,19 +762,10 @@ void DemSystem::remove_leaving_particles() {
   if (!runge_kutta_ && verlet_.has_forces() && verlet_.forces().size() == n) {
     f = verlet_.forces();
     t = verlet_.torques();
-    compact(f, scratch_use_);
-    compact(t, scratch_use_);
+    keep_slots(f, scratch_use_);
+    keep_slots(t, scratch_use_);
   }
-  compact(store_.position, scratch_use_);
-  compact(store_.velocity, scratch_use_);
-  compact(store_.angular_velocity, scratch_use_);
-  compact(store_.force, scratch_use_);
-  compact(store_.torque, scratch_use_);
-  compact(store_.radius, scratch_use_);
-  compact(store_.mass, scratch_use_);
-  compact(store_.inertia, scratch_use_);
-  compact(store_.id, scratch_use_);
-  compact(store_.flags, scratch_use_);
+  store_.keep_where(scratch_use_);
   if (!f.empty()) verlet_.restore_forces(std::move(f), std::move(t));
   else verlet_.reset();
 }
@@ -1131,7 +1113,7 @@ void DemSystem::read_checkpoint(const io::Hdf5Group& group) {
   std::vector<std::size_t> mine;
   for (std::size_t i = 0; i < ids.size(); ++i)
     if (decomposition_.owner(x[i]) == (distributed_ ? mpi::rank() : 0)) mine.push_back(i);
-  std::stable_sort(mine.begin(), mine.end(), [&](std::size_t a, std::size_t b) { return ids[a] < ids[b]; });
+  std::sort(mine.begin(), mine.end(), [&](std::size_t a, std::size_t b) { return ids[a] < ids[b]; });
   store_.clear();
   std::vector<Vec3> my_force, my_torque;
   for (const std::size_t i : mine) {
@@ -1189,7 +1171,7 @@ void DemSystem::read_checkpoint(const io::Hdf5Group& group) {
     if (a.first != b.first) return a.first < b.first;
     return a.second != b.second ? a.second < b.second : a.last_step > b.last_step;
   };
-  std::stable_sort(entries.begin(), entries.end(), pair_less);
+  std::sort(entries.begin(), entries.end(), pair_less);  // copies equal in all three are identical
   entries.erase(std::unique(entries.begin(), entries.end(),
                             [](const ContactHistoryEntry& a, const ContactHistoryEntry& b) {
                               return a.first == b.first && a.second == b.second;

@@ -15,14 +15,20 @@ double stable_time_step(const ParticleStore& store, const NormalLaw& law, int st
   return tau / steps_per_collision;
 }
 
+namespace {
+/// The ghosts (if a hook is given), then the forces.
+void evaluate_forces(ParticleStore& store, ContactForceField& field, HistoryStage stage, double dt,
+                     const BeforeEvaluation& before_evaluation) {
+  if (before_evaluation) before_evaluation(store);
+  field.evaluate(store, stage, dt);
+}
+}  // namespace
+
 void VelocityVerlet::step(ParticleStore& store, ContactForceField& field, double dt,
                           const BeforeEvaluation& before_evaluation) {
   // The slots this step moves: those held before any ghost is appended.
   const std::size_t n = store.size();
-  auto evaluate = [&](HistoryStage stage) {
-    if (before_evaluation) before_evaluation(store);
-    field.evaluate(store, stage, dt);
-  };
+  auto evaluate = [&](HistoryStage stage) { evaluate_forces(store, field, stage, dt, before_evaluation); };
   if (!have_forces_ || force_.size() != n) {
     // Forces at t_n without advancing the tangential history (no time has passed yet).
     evaluate(HistoryStage::kPredict);
@@ -65,10 +71,7 @@ void VelocityVerlet::step(ParticleStore& store, ContactForceField& field, double
 void RungeKutta2::step(ParticleStore& store, ContactForceField& field, double dt,
                        const BeforeEvaluation& before_evaluation) {
   const std::size_t n = store.size();
-  auto evaluate = [&](HistoryStage stage) {
-    if (before_evaluation) before_evaluation(store);
-    field.evaluate(store, stage, dt);
-  };
+  auto evaluate = [&](HistoryStage stage) { evaluate_forces(store, field, stage, dt, before_evaluation); };
   x0_.assign(store.position.begin(), store.position.end());
   v0_.assign(store.velocity.begin(), store.velocity.end());
   w0_.assign(store.angular_velocity.begin(), store.angular_velocity.end());

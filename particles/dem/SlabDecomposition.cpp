@@ -233,15 +233,8 @@ std::size_t SlabDecomposition::migrate(ParticleStore& store, std::vector<Vec3>* 
     for (const auto& leaver : leaving_) keep_[leaver.first] = 0;
     store.keep_where(keep_);
     if (with_forces) {
-      std::size_t out = 0;
-      for (std::size_t i = 0; i < n; ++i)
-        if (keep_[i]) {
-          (*force)[out] = (*force)[i];
-          (*torque)[out] = (*torque)[i];
-          ++out;
-        }
-      force->resize(out);
-      torque->resize(out);
+      keep_slots(*force, keep_);
+      keep_slots(*torque, keep_);
     }
   }
   const std::size_t stayed = store.size();
@@ -265,12 +258,20 @@ std::size_t SlabDecomposition::migrate(ParticleStore& store, std::vector<Vec3>* 
   const std::size_t arrived = store.size() - stayed;
   if (arrived == 0) return 0;
   // Merge the arrivals (sorted among themselves first) into the id order of those that stayed.
-  order_.resize(store.size());
-  std::iota(order_.begin(), order_.end(), 0u);
+  // (A merge by hand: std::inplace_merge's temporary buffer trips AddressSanitizer's
+  // new/free pairing check with this libstdc++.)
+  arrivals_.resize(arrived);
+  std::iota(arrivals_.begin(), arrivals_.end(), static_cast<std::uint32_t>(stayed));
   auto by_id = [&](std::uint32_t x, std::uint32_t y) { return store.id[x] < store.id[y]; };
-  std::sort(order_.begin() + static_cast<std::ptrdiff_t>(stayed), order_.end(), by_id);
-  std::inplace_merge(order_.begin(), order_.begin() + static_cast<std::ptrdiff_t>(stayed),
-                     order_.end(), by_id);
+  std::sort(arrivals_.begin(), arrivals_.end(), by_id);
+  order_.resize(store.size());
+  std::uint32_t next_stayed = 0;
+  std::size_t next_arrival = 0;
+  for (std::size_t k = 0; k < order_.size(); ++k) {
+    const bool take_arrival =
+        next_arrival < arrived && (next_stayed == stayed || by_id(arrivals_[next_arrival], next_stayed));
+    order_[k] = take_arrival ? arrivals_[next_arrival++] : next_stayed++;
+  }
   store.permute(order_);
   if (with_forces) {
     permute_vector(*force, order_);

@@ -85,7 +85,7 @@ class SlabDecomposition {
   std::vector<std::size_t> particle_count_;
   std::vector<std::int64_t> leaving_ids_;
   std::vector<ContactHistoryEntry> entries_;
-  std::vector<std::uint32_t> order_;
+  std::vector<std::uint32_t> order_, arrivals_;
 };
 
 }  // namespace grainwave::particles::dem
