@@ -616,8 +616,7 @@ void DemSystem::advance(double /*t*/, double dt) {
     else verlet_.step(store_, *field_, dt, ghosts);
     if (distributed_) SlabDecomposition::strip_ghosts(store_);
   }
-  const std::int64_t moving = mobile_count();
-  tally_.particle_steps += static_cast<double>(moving);
+  tally_.particle_steps += static_cast<double>(mobile_count());
   const double t_start = tally_.time;
   tally_.time += dt;
   if (measure_flow_ && tally_.opened_at >= 0) {
@@ -640,9 +639,7 @@ void DemSystem::advance(double /*t*/, double dt) {
       tally_.steps_since_balance = 0;
     }
     migrate_particles();
-    global_mobile_ = mpi::sum(mobile_count());
-  } else {
-    global_mobile_ = mobile_count();
+    global_mobile_ = mpi::sum(mobile_count());  // for the progress line, which is not collective
   }
   finish_settling_if_done();
   if (statistics_ && tally_.opened_at >= 0 && tally_.time >= tally_.next_sample * (1 - 1e-12)) {
@@ -1273,7 +1270,8 @@ std::size_t DemSystem::memory_bytes() const {
 
 std::string DemSystem::progress_note() const {
   // Not collective: the contacts are this rank's when distributed.
-  return fmt::format("N {}  contacts {}{}{}", global_mobile_, field_->contact_count(),
+  return fmt::format("N {}  contacts {}{}{}", distributed_ ? global_mobile_ : mobile_count(),
+                     field_->contact_count(),
                      distributed_ ? " (rank 0)" : "", tally_.settling ? "  settling" : "");
 }
 
