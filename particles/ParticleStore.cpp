@@ -72,14 +72,6 @@ void ParticleStore::append_from(const ParticleStore& other, std::size_t i) {
   torque.back() = other.torque[i];
 }
 
-namespace {
-template <class T>
-void permute_slots(std::vector<T>& v, const std::vector<std::uint32_t>& order) {
-  std::vector<T> old(v);
-  for (std::size_t k = 0; k < order.size(); ++k) v[k] = old[order[k]];
-}
-}  // namespace
-
 void ParticleStore::truncate(std::size_t n) {
   if (n >= size()) return;
   position.resize(n);

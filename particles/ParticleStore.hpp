@@ -36,6 +36,13 @@ void keep_slots(std::vector<T>& v, const std::vector<std::uint8_t>& keep) {
   v.resize(out);
 }
 
+/// Rearranges a per-slot array so that entry k holds old entry order[k] (a permutation).
+template <class T>
+void permute_slots(std::vector<T>& v, const std::vector<std::uint32_t>& order) {
+  const std::vector<T> old(v);
+  for (std::size_t k = 0; k < order.size(); ++k) v[k] = old[order[k]];
+}
+
 struct ParticleStore {
   std::vector<Vec3> position;
   std::vector<Vec3> velocity;

@@ -52,12 +52,6 @@ ContactHistoryEntry unpack_entry(const double* p) {
   e.stage_velocity = Vec3(p[7], p[8], p[9]);
   return e;
 }
-
-template <class T>
-void permute_vector(std::vector<T>& v, const std::vector<std::uint32_t>& order) {
-  std::vector<T> old(v);
-  for (std::size_t k = 0; k < order.size(); ++k) v[k] = old[order[k]];
-}
 }  // namespace
 
 SlabDecomposition::SlabDecomposition(const Domain& domain, int axis, std::vector<double> cuts,
@@ -274,8 +268,8 @@ std::size_t SlabDecomposition::migrate(ParticleStore& store, std::vector<Vec3>* 
   }
   store.permute(order_);
   if (with_forces) {
-    permute_vector(*force, order_);
-    permute_vector(*torque, order_);
+    permute_slots(*force, order_);
+    permute_slots(*torque, order_);
   }
   return arrived;
 }
