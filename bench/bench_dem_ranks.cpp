@@ -1,7 +1,11 @@
 // DEM throughput on several MPI ranks: the dense, sheared bed of bench_dem (20 384 spheres, ~6
 // contacts each, periodic in x and z, gravity tilted 25° so it flows along x) cut into slabs
-// along x (particles/dem/SlabDecomposition), stepped the way DemSystem steps it: ghost exchange
-// before each force evaluation, migration after each step. Run it as
+// along x (particles/dem/SlabDecomposition), stepped the way DemSystem steps it. With the cell
+// search at every step (skin 0): ghost exchange before each force evaluation, migration after
+// each step. With a Verlet list (skin 0.1 d, DemSystem's default): before each step the list is
+// checked against the step's predicted positions; when it must be rebuilt the particles migrate
+// and the ghosts are exchanged anew, otherwise only the ghosts' positions and velocities are
+// refreshed before each evaluation. Run it as
 //   mpirun -np 1 build/bench/bench_dem_ranks [steps]
 //   mpirun -np 2 build/bench/bench_dem_ranks [steps]
 // (bench/dem_parallel_efficiency.py runs both and prints the 2-rank parallel efficiency). Prints
@@ -33,7 +37,7 @@ double seconds_since(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-void run(const std::string& tangential, const dem::LawParameters& parameters, int steps) {
+void run(const std::string& tangential, const dem::LawParameters& parameters, int steps, double skin) {
   gw::Domain domain;
   gw::ParticleStore store;
   grainwave::bench::make_dense_bed(store, domain);
@@ -43,35 +47,62 @@ void run(const std::string& tangential, const dem::LawParameters& parameters, in
   settings.gravity = Vec3(std::sin(tilt), -std::cos(tilt), 0.0);
   settings.cell_width = 1.0;
   settings.grid_particles = store.size();
+  settings.verlet_skin = skin;
+  settings.verlet_managed = skin > 0;
   auto model = dem::make_contact_model("linear_spring_dashpot",
                                        {{"stiffness", 2.0e4}, {"restitution", 0.7}}, tangential, parameters);
   const double dt = dem::stable_time_step(store, *model.normal, 50);
   const int ranks = mpi::size();
   dem::SlabDecomposition slabs(domain, 0, dem::SlabDecomposition::balanced_cuts(domain, 0, store, ranks),
-                               settings.cell_width);
+                               settings.cell_width + skin);
   slabs.keep_owned(store);
   dem::ContactForceField field(model, domain, settings);
   dem::VelocityVerlet integrator;
   double exchange_s = 0, migration_s = 0;
   std::int64_t ghosts = 0, migrated = 0;
-  auto with_ghosts = [&](gw::ParticleStore& s) {
+  auto timed = [](double& seconds, auto&& work) {
     const auto start = Clock::now();
-    slabs.exchange_ghosts(s);
-    exchange_s += seconds_since(start);
+    work();
+    seconds += seconds_since(start);
+  };
+  auto with_ghosts = [&](gw::ParticleStore& s) {
+    timed(exchange_s, [&] { skin > 0 ? slabs.refresh_ghosts(s) : slabs.exchange_ghosts(s); });
     ghosts += static_cast<std::int64_t>(s.size() - integrator.forces().size());
   };
+  auto migrate = [&] {
+    timed(migration_s, [&] {
+      migrated += static_cast<std::int64_t>(
+          slabs.migrate(store, &integrator.stored_forces(), &integrator.stored_torques(),
+                        model.tangential->needs_history() ? &field.history() : nullptr));
+    });
+  };
+  std::vector<Vec3> ahead;
+  long builds = 0;
+  auto rebuild = [&] {
+    migrate();
+    timed(exchange_s, [&] { slabs.exchange_ghosts(store); });
+    field.build_list(store);
+    dem::SlabDecomposition::strip_ghosts(store);
+    ++builds;
+  };
   auto step = [&] {
+    if (skin > 0) {  // as DemSystem::prepare_neighbour_list does for velocity Verlet
+      if (!integrator.has_forces()) {
+        rebuild();
+        integrator.prime(store, field, dt, with_ghosts);
+        dem::SlabDecomposition::strip_ghosts(store);
+      }
+      integrator.displacement_ahead(store, dt, ahead);
+      if (mpi::any(field.list_stale_ahead(store, ahead) != dem::VerletList::kValid)) rebuild();
+    }
     integrator.step(store, field, dt, with_ghosts);
     dem::SlabDecomposition::strip_ghosts(store);
-    const auto start = Clock::now();
-    migrated += static_cast<std::int64_t>(
-        slabs.migrate(store, &integrator.stored_forces(), &integrator.stored_torques(),
-                      model.tangential->needs_history() ? &field.history() : nullptr));
-    migration_s += seconds_since(start);
+    if (skin == 0) migrate();
   };
   for (int k = 0; k < 50; ++k) step();  // warm up, buffers reach their working size
   exchange_s = migration_s = 0;
   ghosts = migrated = 0;
+  builds = 0;
   MPI_Barrier(MPI_COMM_WORLD);
   const auto start = Clock::now();
   for (int k = 0; k < steps; ++k) step();
@@ -80,6 +111,7 @@ void run(const std::string& tangential, const dem::LawParameters& parameters, in
   const double exchange = mpi::max(exchange_s), migration = mpi::max(migration_s);
   const double ghosts_per_rank = static_cast<double>(mpi::sum(ghosts)) / (2.0 * steps * ranks);
   const double migrations = static_cast<double>(mpi::sum(migrated)) / steps;
+  const std::string name = tangential + (skin > 0 ? "+list" : "");
   const double history_bytes =
       static_cast<double>(mpi::sum(static_cast<std::int64_t>(field.history().capacity())) *
                           static_cast<std::int64_t>(dem::ContactHistory::bytes_per_entry())) / total;
@@ -90,12 +122,13 @@ void run(const std::string& tangential, const dem::LawParameters& parameters, in
   const double busiest = mpi::max(busy), least = mpi::min(busy);
   if (mpi::is_root() && ranks > 1)
     std::printf("%-16s ranks %d  work per rank (wall minus exchanges): %.2f to %.2f s (imbalance %.1f %%)\n",
-                tangential.c_str(), ranks, least, busiest, 100 * (busiest / least - 1));
+                name.c_str(), ranks, least, busiest, 100 * (busiest / least - 1));
   if (mpi::is_root())
     std::printf("%-16s ranks %d  %8.3g particle-steps/s  wall %6.2f s  ghost exchange %4.1f %%  "
-                "migration %4.1f %%  ghosts/rank %6.0f  migrations/step %5.2f  bytes/particle %5.0f\n",
-                tangential.c_str(), ranks, total * steps / wall, wall, 100 * exchange / wall,
-                100 * migration / wall, ghosts_per_rank, migrations, bytes);
+                "migration %4.1f %%  ghosts/rank %6.0f  migrations/step %5.2f  list builds %ld  "
+                "bytes/particle %5.0f\n",
+                name.c_str(), ranks, total * steps / wall, wall, 100 * exchange / wall,
+                100 * migration / wall, ghosts_per_rank, migrations, builds, bytes);
 }
 
 }  // namespace
@@ -104,7 +137,9 @@ int main(int argc, char** argv) {
   mpi::Session session(&argc, &argv);
   const int given = argc > 1 ? std::atoi(argv[1]) : 0;
   const int steps = given > 0 ? given : 300;
-  run("static_friction", {{"friction", 0.5}}, steps);
-  run("coulomb_spring", {{"stiffness", 5.7e3}, {"friction", 0.5}}, steps);
+  for (const double skin : {0.0, 0.1}) {
+    run("static_friction", {{"friction", 0.5}}, steps, skin);
+    run("coulomb_spring", {{"stiffness", 5.7e3}, {"friction", 0.5}}, steps, skin);
+  }
   return 0;
 }

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 
 namespace grainwave::particles::dem {
 
@@ -104,7 +105,7 @@ void ContactForceField::for_each_contact(const ParticleStore& store, ContactFunc
   auto pair = [&](std::uint32_t i, std::uint32_t j, const Vec3& d, double distance2) {
     if (particle_contact(store, i, j, d, distance2, c)) f(c);
   };
-  if (settings_.verlet_skin > 0.0 && !has_ghosts_) verlet_.for_each_touching_pair(store, pair);
+  if (use_list_) verlet_.for_each_touching_pair(store, pair);
   else cells_.for_each_touching_pair(pair);
   const std::size_t n = owned_end_;  // walls act on owned particles only
   for (std::size_t w = 0; w < plane_walls_.size(); ++w) {
@@ -158,13 +159,8 @@ bool ContactForceField::try_fused(const ParticleStore& store, const Normal& norm
   return false;
 }
 
-void ContactForceField::evaluate(const ParticleStore& store, HistoryStage stage, double dt) {
+void ContactForceField::prepare_slots(const ParticleStore& store) {
   const std::size_t n = store.size();
-  if (stage != HistoryStage::kCorrect) history_.begin_step();
-
-  contacts_.clear();
-  contact_count_ = 0;
-  deepest_ = DeepestContact{};
   inverse_mass_.resize(n);
   for (std::size_t i = 0; i < n; ++i) inverse_mass_[i] = store.inverse_mass(i);
   owned_end_ = n;
@@ -178,20 +174,52 @@ void ContactForceField::evaluate(const ParticleStore& store, HistoryStage stage,
     for (std::size_t k = 0; k < n; ++k)
       visit_order_[k] = (b == all || (a < owned && store.id[a] < store.id[b])) ? a++ : b++;
   }
+}
+
+double ContactForceField::search_cell_width(const ParticleStore& store, double skin) const {
+  double cell_width = settings_.cell_width;
+  if (cell_width <= 0.0) {
+    double largest = 0.0;
+    for (double r : store.radius) largest = std::max(largest, r);
+    cell_width = 2.0 * largest;
+  }
+  return cell_width + skin;
+}
+
+long ContactForceField::list_stale_ahead(const ParticleStore& store, std::span<const Vec3> ahead) const {
+  std::size_t owned = store.size();
+  while (owned > 0 && (store.flags[owned - 1] & kGhost) != 0) --owned;
+  return verlet_.stale_ahead(store, owned, ahead, domain_);
+}
+
+void ContactForceField::build_list(const ParticleStore& store) {
+  prepare_slots(store);
+  const double skin = std::max(settings_.verlet_skin, 0.0);
+  verlet_.build(store, domain_, search_cell_width(store, skin), skin, settings_.grid_particles,
+                has_ghosts_ ? &visit_order_ : nullptr, owned_end_);
+}
+
+void ContactForceField::evaluate(const ParticleStore& store, HistoryStage stage, double dt) {
+  const std::size_t n = store.size();
+  if (stage != HistoryStage::kCorrect) history_.begin_step();
+
+  contacts_.clear();
+  contact_count_ = 0;
+  deepest_ = DeepestContact{};
+  prepare_slots(store);
   if (n > 0) {
-    // Ghosts are renewed at every evaluation, so a Verlet list of slots would not stay valid.
-    const double skin = has_ghosts_ ? 0.0 : std::max(settings_.verlet_skin, 0.0);
-    const bool search_cells = skin == 0.0 || verlet_.stale(store, domain_);
-    if (search_cells) {
-      double cell_width = settings_.cell_width;
-      if (cell_width <= 0.0) {
-        double largest = 0.0;
-        for (double r : store.radius) largest = std::max(largest, r);
-        cell_width = 2.0 * largest + skin;
-      }
-      if (skin > 0.0) verlet_.build(store, domain_, cell_width, skin);
-      else cells_.build(store, domain_, cell_width, settings_.grid_particles,
-                        has_ghosts_ ? &visit_order_ : nullptr);
+    // A self-managed list would see renewed ghosts at every evaluation: with ghosts, only a
+    // caller-managed list stays valid.
+    const double skin = std::max(settings_.verlet_skin, 0.0);
+    use_list_ = skin > 0.0 && (settings_.verlet_managed || !has_ghosts_);
+    if (use_list_ && settings_.verlet_managed) {
+      if (verlet_.skin() < 0.0)
+        throw std::logic_error("ContactForceField: a managed Verlet list evaluated before build_list");
+    } else if (!use_list_) {
+      cells_.build(store, domain_, search_cell_width(store, 0.0), settings_.grid_particles,
+                   has_ghosts_ ? &visit_order_ : nullptr);
+    } else if (verlet_.stale(store, domain_)) {
+      verlet_.build(store, domain_, search_cell_width(store, skin), skin);
     }
     if (settings_.fused && !model_.tangential->needs_history()) {
       if (const auto* law = dynamic_cast<const LinearSpringDashpot*>(model_.normal.get()); law && try_fused(store, *law))

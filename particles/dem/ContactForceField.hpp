@@ -13,7 +13,9 @@
 // rank owns it), walls act on owned particles only, and forces on ghosts are discarded by the
 // caller. When the owned slots and the ghost slots each lie in id order, the cells are filled in
 // their merged id order, so the touching pairs are met, and every owned particle's force summed,
-// in the order of the serial run: the forces are bitwise the serial ones.
+// in the order of the serial run: the forces are bitwise the serial ones. A Verlet list built
+// that way (build_list) lists the pairs in the serial list's order, so the same holds with it,
+// provided every rank rebuilds at the serial run's steps (verlet_managed: DemSystem decides).
 //
 // With a history law, each particle contact is put in a canonical orientation before its
 // history is looked up: i is the smaller id. The stored displacement δ_t is a vector "of j
@@ -27,6 +29,7 @@
 #include "particles/dem/VerletList.hpp"
 #include "particles/dem/Walls.hpp"
 
+#include <span>
 #include <vector>
 
 namespace grainwave::particles::dem {
@@ -55,11 +58,17 @@ inline Vec3 recycling_drag(double coefficient_per_mass, double mass, const Vec3&
 struct ContactForceSettings {
   Vec3 gravity = Vec3::Zero();
   std::vector<RecyclingDragZone> drag_zones;
-  /// Linked-cell width; 0 means the largest particle diameter (plus the skin) at each build.
+  /// Linked-cell width; 0 means the largest particle diameter at each build. With a Verlet
+  /// list the skin is added to it.
   double cell_width = 0.0;
   /// Verlet-list skin: 0 searches the cells at every evaluation; > 0 keeps the pairs closer
   /// than r_i + r_j + skin and searches again only after a particle moved skin/2.
   double verlet_skin = 0.0;
+  /// With a skin: the caller decides when the list is rebuilt (list_stale_ahead, build_list),
+  /// once per step and before it, and evaluate() never rebuilds on its own. This is how the
+  /// list works with ghosts (a domain-decomposed run); without, the list checks itself at each
+  /// evaluation and ghosts fall back to the cell search.
+  bool verlet_managed = false;
   /// With a tangential law without history, each contact's forces are computed and added where
   /// the pair is found, without a list of contacts (bitwise the same forces: the same
   /// arithmetic, added in the same order). false keeps the list (contacts()) for every law.
@@ -104,6 +113,14 @@ class ContactForceField {
   ContactHistory& history() { return history_; }
   const VerletList& verlet_list() const { return verlet_; }
 
+  /// Caller-managed Verlet list (settings().verlet_managed). VerletList::kValid when the list
+  /// serves the coming step, whose evaluations see the owned slots (those before the ghosts)
+  /// at their positions now and at position + ahead[i]; else why not (VerletList::stale_ahead).
+  long list_stale_ahead(const ParticleStore& store, std::span<const Vec3> ahead) const;
+  /// Builds the list from the store as it is (owned slots, then ghosts in id order).
+  void build_list(const ParticleStore& store);
+  void invalidate_list() { verlet_.invalidate(); }
+
  private:
   /// Calls f(contact) for every touching particle pair, then for every wall contact, in a
   /// fixed order; the contact's forces are not set yet.
@@ -122,6 +139,11 @@ class ContactForceField {
   /// One pass: every contact's forces computed and added where it is found (no history).
   template <class Normal, class Tangential>
   void evaluate_fused(const ParticleStore& store, const Normal& normal, const Tangential& tangential);
+  /// Per-slot scratch of an evaluation or a build: inverse masses, where the ghosts begin, and
+  /// with ghosts the merged id order of the slots.
+  void prepare_slots(const ParticleStore& store);
+  /// Cell width of a search: settings().cell_width, or the largest diameter; plus `skin`.
+  double search_cell_width(const ParticleStore& store, double skin) const;
   /// The fused pass for these laws if they are of known final types; false otherwise.
   template <class Normal>
   bool try_fused(const ParticleStore& store, const Normal& normal);
@@ -141,6 +163,7 @@ class ContactForceField {
   std::size_t owned_end_ = 0;         ///< first ghost slot (ghosts trail the owned slots)
   bool has_ghosts_ = false;
   std::vector<std::uint32_t> visit_order_;  ///< owned and ghost slots merged by id
+  bool use_list_ = false;  ///< this evaluation takes its pairs from verlet_
   std::vector<Vec3> force_;
   std::vector<Vec3> torque_;
 };

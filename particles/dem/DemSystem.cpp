@@ -209,6 +209,12 @@ void DemSystem::declare(SceneSchema& schema) {
       .of_length(2);
   s.real("max_overlap", 0.5, "largest overlap over the radius before the run stops as failed")
       .above(0);
+  s.real("neighbour_skin", 0.1,
+         "Verlet list: pairs closer than contact plus this fraction of the largest diameter are "
+         "listed, and the list is rebuilt only once a particle has moved half of it (0: cell "
+         "search at every step)")
+      .at_least(0)
+      .at_most(1);
   s.text("decomposition", "slabs",
          "on more than one MPI rank: slabs (each rank owns the particles of a slab along "
          "decomposition_axis, with ghosts of its neighbours) or replicated (every rank steps all)")
@@ -343,6 +349,9 @@ DemSystem::DemSystem(const Scene& scene) : scene_(scene) {
   for (double r : store_.radius) largest = std::max(largest, r);
   field_->settings().cell_width = 2 * largest;
   field_->settings().grid_particles = store_.size();
+  skin_ = s.real("neighbour_skin") * 2 * largest;
+  field_->settings().verlet_skin = skin_;
+  field_->settings().verlet_managed = skin_ > 0;
   const bool slabs = s.text("decomposition") == "slabs";
   if (mpi::size() > 1 && slabs && placement_ != Placement::kCollision) {
     const std::string axis_name = s.text("decomposition_axis");
@@ -350,7 +359,8 @@ DemSystem::DemSystem(const Scene& scene) : scene_(scene) {
     if (axis >= domain_.dimension)
       s.fail("decomposition_axis", "a 2D scene is cut along x or y");
     auto cuts = SlabDecomposition::balanced_cuts(domain_, axis, store_, mpi::size());
-    decomposition_ = SlabDecomposition(domain_, axis, cuts, 2 * largest);
+    // A Verlet list keeps its ghosts until the next build: they reach a skin further.
+    decomposition_ = SlabDecomposition(domain_, axis, cuts, 2 * largest + skin_);
     decomposition_.keep_owned(store_);
     distributed_ = true;
     rebalance_every_ = s.integer("rebalance_every");
@@ -515,9 +525,10 @@ double DemSystem::surface_gap() const {
 std::string DemSystem::describe() const {
   // The counts of the scene as placed (describe() is not collective).
   return fmt::format(
-      "DEM: {} {} ({} fixed), {} + {}, {}, dt = {:.4g} s (tau/{}), {} walls{}{}", initial_mobile_,
+      "DEM: {} {} ({} fixed), {} + {}, {}, dt = {:.4g} s (tau/{}), {}, {} walls{}{}", initial_mobile_,
       domain_.dimension == 3 ? "spheres" : "disks", initial_fixed_, normal_name_, tangential_name_,
       runge_kutta_ ? "RK2" : "velocity Verlet", dt_, steps_per_collision_,
+      skin_ > 0 ? fmt::format("Verlet list (skin {:.3g} m)", skin_) : "cell search every step",
       field_->plane_walls().size() + field_->finite_walls().size(), has_gate_ ? ", gate" : "",
       decomposition_note_);
 }
@@ -599,19 +610,75 @@ void DemSystem::finish_settling_if_done() {
   apply_settling_forces();
 }
 
+void DemSystem::prepare_neighbour_list(double dt, const BeforeEvaluation& refresh) {
+  bool prime = !runge_kutta_ && !verlet_.has_forces();
+  if (distributed_) prime = mpi::any(prime);
+  if (prime) {  // the forces at t_n, on a list built for the present positions
+    rebuild_neighbour_list();
+    verlet_.prime(store_, *field_, dt, refresh);
+    if (distributed_) SlabDecomposition::strip_ghosts(store_);
+  }
+  for (int attempt = 0; attempt < 2; ++attempt) {
+    if (runge_kutta_) RungeKutta2::displacement_ahead(store_, dt, ahead_);
+    else verlet_.displacement_ahead(store_, dt, ahead_);
+    const long why = field_->list_stale_ahead(store_, ahead_);
+    const bool stale = distributed_ ? mpi::any(why != VerletList::kValid) : why != VerletList::kValid;
+    if (!stale) return;
+    if (attempt == 1) {
+      // Even a fresh list may miss a pair when a particle moves more than skin/2 in one step.
+      if (why >= 0)
+        skin_failure_ = fmt::format(
+            "particle id {} moves {:.3g} m within one step, more than half the neighbour skin "
+            "({:.3g} m): raise dem.neighbour_skin or dem.steps_per_collision",
+            store_.id[static_cast<std::size_t>(why)], ahead_[static_cast<std::size_t>(why)].norm(), skin_);
+      return;
+    }
+    rebuild_neighbour_list();
+  }
+}
+
+void DemSystem::rebuild_neighbour_list() {
+  ScopedTimer timer(timers_, "neighbour_list");
+  // After a restart the writer's reference positions stand in for the present ones: they give
+  // the ghost set and the list the writer had (the particles already sit in their slabs).
+  const bool from_reference = !restart_reference_.empty() && restart_reference_.size() == store_.size();
+  if (from_reference) std::swap(store_.position, restart_reference_);
+  if (distributed_) {
+    if (!from_reference) {
+      if (rebalance_every_ > 0 && tally_.steps_since_balance >= rebalance_every_) {
+        decomposition_.set_cuts(decomposition_.rebalanced_cuts(store_));
+        tally_.steps_since_balance = 0;
+      }
+      migrate_particles();
+    }
+    ScopedTimer exchange_timer(timers_, "ghost_exchange");
+    decomposition_.exchange_ghosts(store_);
+  }
+  field_->build_list(store_);
+  if (distributed_) SlabDecomposition::strip_ghosts(store_);
+  if (from_reference) std::swap(store_.position, restart_reference_);
+  restart_reference_.clear();
+}
+
 void DemSystem::advance(double /*t*/, double dt) {
-  const std::size_t n = store_.size();
-  y_before_.resize(n);
-  for (std::size_t i = 0; i < n; ++i) y_before_[i] = store_.position[i].y();
   if (tally_.settling && settle_damping_ > 0) apply_settling_forces();
   {
     ScopedTimer timer(timers_, "contacts_and_integration");
     BeforeEvaluation ghosts;
-    if (distributed_)
+    if (distributed_ && skin_ > 0)
+      ghosts = [this](ParticleStore& store) {
+        ScopedTimer exchange_timer(timers_, "ghost_exchange");
+        decomposition_.refresh_ghosts(store);
+      };
+    else if (distributed_)
       ghosts = [this](ParticleStore& store) {
         ScopedTimer exchange_timer(timers_, "ghost_exchange");
         decomposition_.exchange_ghosts(store);
       };
+    if (skin_ > 0) prepare_neighbour_list(dt, ghosts);  // may migrate particles
+    const std::size_t n = store_.size();
+    y_before_.resize(n);
+    for (std::size_t i = 0; i < n; ++i) y_before_[i] = store_.position[i].y();
     if (runge_kutta_) rk2_.step(store_, *field_, dt, ghosts);
     else verlet_.step(store_, *field_, dt, ghosts);
     if (distributed_) SlabDecomposition::strip_ghosts(store_);
@@ -634,11 +701,13 @@ void DemSystem::advance(double /*t*/, double dt) {
   if (distributed_) {
     // Re-cut the slabs now and then, so that a bed that settles or drains stays balanced; the
     // cuts follow from the positions alone, the same on every rank and in every run.
-    if (rebalance_every_ > 0 && ++tally_.steps_since_balance >= rebalance_every_) {
+    // With a Verlet list both happen at its rebuilds instead (rebuild_neighbour_list).
+    if (rebalance_every_ > 0) ++tally_.steps_since_balance;
+    if (skin_ == 0 && rebalance_every_ > 0 && tally_.steps_since_balance >= rebalance_every_) {
       decomposition_.set_cuts(decomposition_.rebalanced_cuts(store_));
       tally_.steps_since_balance = 0;
     }
-    migrate_particles();
+    if (skin_ == 0) migrate_particles();
     global_mobile_ = mpi::sum(mobile_count());  // for the progress line, which is not collective
   }
   finish_settling_if_done();
@@ -840,6 +909,7 @@ void DemSystem::sample_statistics() {
 }
 
 std::optional<std::string> DemSystem::check_state() const {
+  if (!skin_failure_.empty()) return skin_failure_;
   for (std::size_t i = 0; i < store_.size(); ++i) {
     if (!store_.position[i].allFinite() || !store_.velocity[i].allFinite() ||
         !store_.angular_velocity[i].allFinite()) {
@@ -883,6 +953,8 @@ void DemSystem::restore_good_state() {
   sample_seen_ = good_sample_seen_;
   if (!good_force_.empty()) verlet_.restore_forces(good_force_, good_torque_);
   else verlet_.reset();
+  field_->invalidate_list();
+  skin_failure_.clear();
   field_->history().restore(good_history_step_, good_history_);
   apply_settling_forces();
 }
@@ -1065,6 +1137,18 @@ void DemSystem::write_checkpoint(io::Hdf5Group& group) {
               distributed_);
   write_array(g, "integrator_torque", forces ? flatten(verlet_.torques()) : std::vector<double>{}, 3,
               distributed_);
+  // The Verlet list's reference positions (row by row with the particles): a restart builds
+  // its first list from them, which is the list this run holds, so the rebuilds, and with them
+  // the order in which forces are added, stay those of the uninterrupted run. None when the
+  // list no longer holds these particles (some left): it is rebuilt before the next step anyway.
+  bool list_holds = skin_ > 0 && field_->verlet_list().holds(store_, store_.size());
+  if (distributed_) list_holds = !mpi::any(!list_holds);
+  std::vector<double> reference;
+  if (list_holds) {
+    const auto& r = field_->verlet_list().reference();
+    reference = flatten(std::vector<Vec3>(r.begin(), r.begin() + static_cast<std::ptrdiff_t>(store_.size())));
+  }
+  write_array(g, "neighbour_reference", reference, 3, distributed_);
   // Contacts between particles of two ranks are kept by both: such entries appear twice.
   std::vector<ContactHistoryEntry> entries;
   field_->history().live_entries(entries);
@@ -1106,14 +1190,22 @@ void DemSystem::read_checkpoint(const io::Hdf5Group& group) {
   if (const auto cuts = read_all_real(g, "slab_cuts");
       distributed_ && cuts.size() == decomposition_.cuts().size())
     decomposition_.set_cuts(cuts);
-  // Every rank reads all particles and keeps those in its slab, in id order.
+  // Every rank reads all particles and keeps those in its slab, in id order. With the Verlet
+  // list's reference positions, the slab is the one a particle was in at the list's build:
+  // between builds particles do not migrate.
+  const auto reference = unflatten(read_all_real(g, "neighbour_reference"));
+  const bool from_reference = skin_ > 0 && reference.size() == ids.size();
   std::vector<std::size_t> mine;
   for (std::size_t i = 0; i < ids.size(); ++i)
-    if (decomposition_.owner(x[i]) == (distributed_ ? mpi::rank() : 0)) mine.push_back(i);
+    if (decomposition_.owner(from_reference ? reference[i] : x[i]) == (distributed_ ? mpi::rank() : 0))
+      mine.push_back(i);
   std::sort(mine.begin(), mine.end(), [&](std::size_t a, std::size_t b) { return ids[a] < ids[b]; });
   store_.clear();
+  field_->invalidate_list();
+  restart_reference_.clear();
   std::vector<Vec3> my_force, my_torque;
   for (const std::size_t i : mine) {
+    if (from_reference) restart_reference_.push_back(reference[i]);
     store_.add(ids[i], x[i], v[i], w[i], r[i], m[i], inertia[i], static_cast<std::uint32_t>(flags[i]));
     store_.force.back() = f[i];
     store_.torque.back() = t[i];
@@ -1205,6 +1297,7 @@ void DemSystem::report(io::Json& counts, io::Json& metrics, double step_wall_s, 
   counts.set("fixed_particles", held - mobile);
   counts.set("particles_removed", global_sum(tally_.removed));
   counts.set("contacts", global_sum(static_cast<std::int64_t>(field_->contact_count())));
+  if (skin_ > 0) counts.set("neighbour_list_builds", static_cast<std::int64_t>(field_->verlet_list().builds()));
   if (distributed_) {
     counts.set("ranks_in_slabs", static_cast<std::int64_t>(mpi::size()));
     // Moving particles per rank, the work each carries: how well the cuts balance it.
@@ -1263,7 +1356,10 @@ std::size_t DemSystem::memory_bytes() const {
   // State + last good copy, the integrator's and the force field's per-particle arrays, the
   // contact list and the history table.
   const std::size_t n = store_.size();
-  return 2 * n * ParticleStore::bytes_per_particle() + 4 * n * sizeof(Vec3) * 2 +
+  // The Verlet list: its pairs, and a reference position and id per slot.
+  const std::size_t list = field_->verlet_list().pair_count() * 2 * sizeof(std::uint32_t) +
+                           field_->verlet_list().reference().size() * (sizeof(Vec3) + sizeof(std::int64_t));
+  return 2 * n * ParticleStore::bytes_per_particle() + 4 * n * sizeof(Vec3) * 2 + list +
          n * (2 * sizeof(Vec3) + sizeof(double)) + field_->contacts().capacity() * sizeof(Contact) +
          2 * field_->history().capacity() * ContactHistory::bytes_per_entry();
 }

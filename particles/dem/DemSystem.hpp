@@ -16,6 +16,17 @@
 //   flow        mass flow rate through a horizontal plane, bin statistics ([dem_statistics]),
 //               curtain-state file ([dem_curtain]); particles leaving an open face are removed.
 //
+// Neighbour search (dem.neighbour_skin): a Verlet list with a skin of 0.1 largest diameters
+// by default. Before each step the list is checked against the positions the step will
+// evaluate the forces at (the integrator predicts them), and rebuilt only when some particle
+// would be more than half the skin from where the list saw it; so the decision is taken
+// between steps, the same on every rank and in every run. With slabs, particles migrate and
+// ghosts are exchanged only at these rebuilds (the ghost band is a skin wider); in between the
+// ghosts' positions and velocities are refreshed before each evaluation. A checkpoint stores
+// where the particles were at the last build, so a restart rebuilds that very list. 0 searches
+// the cells at every evaluation instead (ghosts exchanged before each, migration after each
+// step).
+//
 // MPI (dem.decomposition): "slabs" (the default) cuts the box into slabs along
 // dem.decomposition_axis, balanced by particle count at the start, each rank stepping the
 // particles it owns with ghost copies of its neighbours' (particles/dem/SlabDecomposition);
@@ -124,6 +135,15 @@ class DemSystem : public io::System {
   BinStatistics global_bins() const;
   /// After a step: particles that left the slab go to their new owner (collective).
   void migrate_particles();
+  /// With a Verlet list (dem.neighbour_skin > 0), before a step: the forces of velocity Verlet
+  /// if it has none, then a rebuild of the list unless it serves every evaluation of the step
+  /// (positions predicted by the integrator). The decision is the same on every rank and in
+  /// every run, so the rebuilds, and with them the pair order, are those of the serial run.
+  /// `refresh` brings the ghosts up to date before an evaluation.
+  void prepare_neighbour_list(double dt, const BeforeEvaluation& refresh);
+  /// Re-cut (when due), migration and ghost exchange when distributed, then the list built;
+  /// after a restart, at the checkpoint's reference positions (collective when distributed).
+  void rebuild_neighbour_list();
   /// Per-rank parts of the tally (sums over this rank's particles), for checkpoints.
   std::vector<double> tally_partials() const;
   void set_tally_partials(const std::vector<double>& partials);
@@ -169,6 +189,13 @@ class DemSystem : public io::System {
   std::string decomposition_note_;     ///< for describe()
   std::int64_t initial_fixed_ = 0;     ///< fixed particles at the start, all ranks
   std::int64_t global_mobile_ = 0;     ///< moving particles after the last step, all ranks
+  // Verlet list.
+  double skin_ = 0;                     ///< [m]; 0: cell search at every evaluation
+  /// After a restart: where the owned particles were when the writer last built its list (the
+  /// next build uses them, so that it lists what the writer's list held), else empty.
+  std::vector<Vec3> restart_reference_;
+  std::vector<Vec3> ahead_;             ///< the coming step's displacements (scratch)
+  std::string skin_failure_;            ///< a particle outran half the skin (check_state)
 
   // State.
   ParticleStore store_, good_store_;

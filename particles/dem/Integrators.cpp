@@ -24,17 +24,39 @@ void evaluate_forces(ParticleStore& store, ContactForceField& field, HistoryStag
 }
 }  // namespace
 
+void VelocityVerlet::prime(ParticleStore& store, ContactForceField& field, double dt,
+                           const BeforeEvaluation& before_evaluation) {
+  const std::size_t n = store.size();
+  // Forces at t_n without advancing the tangential history (no time has passed yet).
+  evaluate_forces(store, field, HistoryStage::kPredict, dt, before_evaluation);
+  force_.assign(field.force().begin(), field.force().begin() + static_cast<std::ptrdiff_t>(n));
+  torque_.assign(field.torque().begin(), field.torque().begin() + static_cast<std::ptrdiff_t>(n));
+  have_forces_ = true;
+}
+
+void VelocityVerlet::displacement_ahead(const ParticleStore& store, double dt, std::vector<Vec3>& out) const {
+  // The drift of step(), written the same way.
+  const std::size_t n = std::min(store.size(), force_.size());
+  out.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double inv_m = store.inverse_mass(i);
+    out[i] = inv_m == 0.0 ? Vec3::Zero() : Vec3(dt * (store.velocity[i] + (0.5 * dt * inv_m) * force_[i]));
+  }
+}
+
+void RungeKutta2::displacement_ahead(const ParticleStore& store, double dt, std::vector<Vec3>& out) {
+  out.resize(store.size());
+  for (std::size_t i = 0; i < store.size(); ++i)
+    out[i] = store.inverse_mass(i) == 0.0 ? Vec3::Zero() : Vec3(dt * store.velocity[i]);
+}
+
 void VelocityVerlet::step(ParticleStore& store, ContactForceField& field, double dt,
                           const BeforeEvaluation& before_evaluation) {
   // The slots this step moves: those held before any ghost is appended.
   const std::size_t n = store.size();
   auto evaluate = [&](HistoryStage stage) { evaluate_forces(store, field, stage, dt, before_evaluation); };
   if (!have_forces_ || force_.size() != n) {
-    // Forces at t_n without advancing the tangential history (no time has passed yet).
-    evaluate(HistoryStage::kPredict);
-    force_.assign(field.force().begin(), field.force().begin() + static_cast<std::ptrdiff_t>(n));
-    torque_.assign(field.torque().begin(), field.torque().begin() + static_cast<std::ptrdiff_t>(n));
-    have_forces_ = true;
+    prime(store, field, dt, before_evaluation);
   }
   // Kick and drift, then a second kick with the old forces: the velocities seen by the force
   // evaluation are the prediction v_n + Δt a_n of v_{n+1} rather than the half-step velocity,

@@ -35,6 +35,13 @@ class VelocityVerlet {
             const BeforeEvaluation& before_evaluation = {});
   /// Call after particles were added or removed: forces are recomputed before the next kick.
   void reset() { have_forces_ = false; }
+  /// Evaluates the forces at t_n now, as step() otherwise does first when it has none (a
+  /// caller that plans the step ahead, ContactForceField::list_stale_ahead, needs them before).
+  void prime(ParticleStore& store, ContactForceField& field, double dt,
+             const BeforeEvaluation& before_evaluation = {});
+  /// How far the coming step moves each slot: its displacement from now to the positions the
+  /// step evaluates the forces at (zero for fixed particles). Needs has_forces().
+  void displacement_ahead(const ParticleStore& store, double dt, std::vector<Vec3>& out) const;
 
   /// The forces and torques at the start of the next step (those of the last evaluation), kept
   /// by the integrator so that a restart or a removal of particles can put them back exactly
@@ -62,6 +69,9 @@ class RungeKutta2 {
  public:
   void step(ParticleStore& store, ContactForceField& field, double dt,
             const BeforeEvaluation& before_evaluation = {});
+  /// As VelocityVerlet::displacement_ahead: the corrector's evaluation is at x + Δt v (the
+  /// predictor's at x itself).
+  static void displacement_ahead(const ParticleStore& store, double dt, std::vector<Vec3>& out);
 
  private:
   std::vector<Vec3> x0_, v0_, w0_, a0_, alpha0_;

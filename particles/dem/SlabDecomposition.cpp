@@ -153,17 +153,24 @@ void SlabDecomposition::exchange_ghosts(ParticleStore& store) {
   const double a = cuts_[static_cast<std::size_t>(rank_)];
   const double b = cuts_[static_cast<std::size_t>(rank_) + 1];
   exchange_->clear();
+  sent_.resize(static_cast<std::size_t>(ranks_));
+  for (auto& slots : sent_) slots.clear();
   for (std::size_t i = 0; i < owned; ++i) {
     const double s = store.position[i][axis_];
     // Every other slab lies outside [a, b): a centre deeper than reach is nobody's ghost.
     if (s - a >= reach_ && b - s >= reach_) continue;
     for (int r = 0; r < ranks_; ++r)
-      if (r != rank_ && distance_to_slab(s, r) < reach_) pack_particle(store, i, exchange_->outgoing(r));
+      if (r != rank_ && distance_to_slab(s, r) < reach_) {
+        pack_particle(store, i, exchange_->outgoing(r));
+        sent_[static_cast<std::size_t>(r)].push_back(static_cast<std::uint32_t>(i));
+      }
   }
   exchange_->exchange();
   const auto& in = exchange_->incoming();
   const std::size_t arrived = in.size() / kParticleDoubles;
   for (std::size_t k = 0; k < arrived; ++k) unpack_particle(&in[k * kParticleDoubles], kGhost, store);
+  ghost_of_arrival_.resize(arrived);
+  std::iota(ghost_of_arrival_.begin(), ghost_of_arrival_.end(), 0u);
   // Each sender packs in id order; with more than one sender the ghosts are merged by id.
   if (!std::is_sorted(store.id.begin() + static_cast<std::ptrdiff_t>(owned), store.id.end())) {
     order_.resize(store.size());
@@ -171,6 +178,46 @@ void SlabDecomposition::exchange_ghosts(ParticleStore& store) {
     std::sort(order_.begin() + static_cast<std::ptrdiff_t>(owned), order_.end(),
               [&](std::uint32_t x, std::uint32_t y) { return store.id[x] < store.id[y]; });
     store.permute(order_);
+    for (std::size_t g = 0; g < arrived; ++g)
+      ghost_of_arrival_[order_[owned + g] - owned] = static_cast<std::uint32_t>(g);
+  }
+  ghosts_.clear();
+  for (std::size_t g = owned; g < store.size(); ++g) ghosts_.append_from(store, g);
+}
+
+void SlabDecomposition::refresh_ghosts(ParticleStore& store) {
+  if (ranks_ == 1) return;
+  constexpr std::size_t kStateDoubles = 9;  // x, v, ω
+  exchange_->clear();
+  for (int r = 0; r < ranks_; ++r) {
+    auto& out = exchange_->outgoing(r);
+    for (const std::uint32_t i : sent_[static_cast<std::size_t>(r)])
+      for (const Vec3* v : {&store.position[i], &store.velocity[i], &store.angular_velocity[i]})
+        out.insert(out.end(), {v->x(), v->y(), v->z()});
+  }
+  exchange_->exchange();
+  const auto& in = exchange_->incoming();
+  if (in.size() != ghost_of_arrival_.size() * kStateDoubles)
+    throw std::logic_error("SlabDecomposition: ghost refresh does not match the last exchange");
+  for (std::size_t k = 0; k < ghost_of_arrival_.size(); ++k) {
+    const double* p = &in[k * kStateDoubles];
+    const std::size_t g = ghost_of_arrival_[k];
+    ghosts_.position[g] = Vec3(p[0], p[1], p[2]);
+    ghosts_.velocity[g] = Vec3(p[3], p[4], p[5]);
+    ghosts_.angular_velocity[g] = Vec3(p[6], p[7], p[8]);
+  }
+  std::size_t owned = store.size();
+  while (owned > 0 && (store.flags[owned - 1] & kGhost) != 0) --owned;
+  if (owned == store.size()) {
+    for (std::size_t g = 0; g < ghosts_.size(); ++g) store.append_from(ghosts_, g);
+    return;
+  }
+  if (store.size() - owned != ghosts_.size())
+    throw std::logic_error("SlabDecomposition: the store holds other ghosts than the last exchange");
+  for (std::size_t g = 0; g < ghosts_.size(); ++g) {
+    store.position[owned + g] = ghosts_.position[g];
+    store.velocity[owned + g] = ghosts_.velocity[g];
+    store.angular_velocity[owned + g] = ghosts_.angular_velocity[g];
   }
 }
 

@@ -11,7 +11,8 @@
 // owned slots are kept in id order (arrivals are merged in), and ghosts are appended in id order.
 //
 // Cost per step: one all-to-all of the band particles before each force evaluation and one of
-// the migrants after the step; with a tangential law that keeps history, a scan of the history
+// the migrants after the step (with a Verlet list both only at the list's rebuilds, and in
+// between one all-to-all of the ghosts' positions and velocities per evaluation); with a tangential law that keeps history, a scan of the history
 // table when some particle leaves. The cuts are balanced by particle count at the start and, if
 // the caller asks (DemSystem: dem.rebalance_every), again from time to time; being computed
 // from positions alone, they are the same on every rank and in every run.
@@ -58,8 +59,14 @@ class SlabDecomposition {
   /// Drops the ghosts at the end of the store.
   static void strip_ghosts(ParticleStore& store);
   /// Collective. Replaces the ghosts at the end of the store by copies, in id order, of the
-  /// other ranks' particles within reach of this slab at their present positions.
+  /// other ranks' particles within reach of this slab at their present positions, and keeps
+  /// the set (who is sent where, and a copy) for refresh_ghosts().
   void exchange_ghosts(ParticleStore& store);
+  /// Collective. The same ghosts as the last exchange_ghosts(), with their owners' present
+  /// position, velocity and angular velocity: written over the store's ghosts, or appended
+  /// if the store has none (they were stripped after the step). A Verlet list built with the
+  /// ghosts stays valid over this (ContactForceField, verlet_managed).
+  void refresh_ghosts(ParticleStore& store);
   /// Collective, on a store without ghosts. Sends the particles whose centres left the slab to
   /// their owners with their entries of `force`/`torque` (the integrator's, may be null) and of
   /// `history` (may be null), receives the arrivals and merges them into id order. Returns the
@@ -86,6 +93,11 @@ class SlabDecomposition {
   std::vector<std::int64_t> leaving_ids_;
   std::vector<ContactHistoryEntry> entries_;
   std::vector<std::uint32_t> order_, arrivals_;
+  // The ghost set of the last exchange: the slots sent to each rank, in the order sent, the
+  // ghost index (0 = first ghost slot) of each arrival in the order received, and the ghosts.
+  std::vector<std::vector<std::uint32_t>> sent_;
+  std::vector<std::uint32_t> ghost_of_arrival_;
+  ParticleStore ghosts_;
 };
 
 }  // namespace grainwave::particles::dem

@@ -15,8 +15,30 @@ bool VerletList::stale(const ParticleStore& store, const Domain& domain) const {
   return false;
 }
 
+bool VerletList::holds(const ParticleStore& store, std::size_t owned) const {
+  return skin_ >= 0.0 && owned == owned_ && owned <= store.size() &&
+         std::equal(ids_.begin(), ids_.begin() + static_cast<std::ptrdiff_t>(owned), store.id.begin());
+}
+
+long VerletList::stale_ahead(const ParticleStore& store, std::size_t owned,
+                             std::span<const Vec3> ahead, const Domain& domain) const {
+  if (!holds(store, owned) || ahead.size() < owned) return kOtherSlots;
+  // A hair inside skin/2: the step's own arithmetic may land its positions an ulp away from
+  // the caller's prediction.
+  const double half = 0.5 * skin_ * (1.0 - 1e-9);
+  const double limit2 = half * half;
+  for (std::size_t i = 0; i < owned; ++i) {
+    const Vec3& x = store.position[i];
+    if (domain.separation(reference_[i], x).squaredNorm() > limit2 ||
+        domain.separation(reference_[i], x + ahead[i]).squaredNorm() > limit2)
+      return static_cast<long>(i);
+  }
+  return kValid;
+}
+
 void VerletList::build(const ParticleStore& store, const Domain& domain, double cell_width,
-                       double skin) {
+                       double skin, std::size_t grid_particles,
+                       const std::vector<std::uint32_t>* visit_order, std::size_t owned) {
   skin_ = skin;
   ++builds_;
   for (int k = 0; k < 3; ++k) {
@@ -26,9 +48,12 @@ void VerletList::build(const ParticleStore& store, const Domain& domain, double 
   }
   reference_.assign(store.position.begin(), store.position.end());
   ids_.assign(store.id.begin(), store.id.end());
+  owned_ = std::min(owned, store.size());
   pairs_.clear();
-  cells_.build(store, domain, cell_width);
+  cells_.build(store, domain, cell_width, grid_particles, visit_order);
+  const auto first_ghost = static_cast<std::uint32_t>(owned_);
   cells_.for_each_pair_within(skin, [&](std::uint32_t i, std::uint32_t j, const Vec3&, double) {
+    if ((i >= first_ghost && j >= first_ghost) || (store.is_fixed(i) && store.is_fixed(j))) return;
     pairs_.emplace_back(i, j);
   });
 }

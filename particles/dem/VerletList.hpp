@@ -2,14 +2,22 @@
 // Verlet neighbour list with a skin (the standard companion of linked cells, e.g. Allen &
 // Tildesley): pairs closer than r_i + r_j + skin are collected with LinkedCells and reused until
 // some particle has moved more than skin/2 since the build, so no pair can come into contact
-// unseen. This removes the cell sort and most distance tests from steps between rebuilds. The
-// list is also rebuilt when the slots hold different particles (ids compared), so adding,
-// removing or reordering particles can never use a stale list.
+// unseen. This removes the cell sort and most distance tests from steps between rebuilds.
+//
+// Two ways to decide when to rebuild:
+//   stale()        at each evaluation, from the positions of that moment (the list manages
+//                  itself; also rebuilt when the slots hold different particles, ids compared,
+//                  so adding, removing or reordering particles never uses a stale list);
+//   stale_ahead()  once per step, before it, from the positions the step will evaluate at (the
+//                  caller's prediction). A domain-decomposed run needs this: ghosts and
+//                  migration may only change between steps, and every rank must rebuild at the
+//                  same steps as the serial run for the forces to stay bitwise equal.
 #include "particles/Domain.hpp"
 #include "particles/ParticleStore.hpp"
 #include "particles/dem/LinkedCells.hpp"
 
 #include <cstdint>
+#include <span>
 #include <utility>
 #include <vector>
 
@@ -17,10 +25,29 @@ namespace grainwave::particles::dem {
 
 class VerletList {
  public:
+  /// What stale_ahead() found.
+  static constexpr long kValid = -1;
+  static constexpr long kOtherSlots = -2;  ///< never built, or the slots hold other particles
+  static constexpr std::size_t kAllOwned = static_cast<std::size_t>(-1);
+
   /// True when build() is needed before the next search.
   bool stale(const ParticleStore& store, const Domain& domain) const;
+  /// kValid if the list serves every evaluation of the coming step: the first `owned` slots hold
+  /// the particles they held at the build, and each of them, at its position now and at
+  /// position + ahead[i], lies within skin/2 of where it was at the build. Otherwise
+  /// kOtherSlots or the first slot that moves too far.
+  long stale_ahead(const ParticleStore& store, std::size_t owned, std::span<const Vec3> ahead,
+                   const Domain& domain) const;
   /// Collects the pairs within r_i + r_j + skin; cells must be at least 2 r_max + skin wide.
-  void build(const ParticleStore& store, const Domain& domain, double cell_width, double skin);
+  /// `grid_particles` and `visit_order` as in LinkedCells::build (a decomposed run's rank
+  /// passes them to list the pairs in the serial order); the first `owned` slots are the
+  /// rank's own, the rest ghosts. Pairs that can never interact are left out: two ghosts
+  /// (another rank's pair) and two fixed particles.
+  void build(const ParticleStore& store, const Domain& domain, double cell_width, double skin,
+             std::size_t grid_particles = 0, const std::vector<std::uint32_t>* visit_order = nullptr,
+             std::size_t owned = kAllOwned);
+  /// The next stale()/stale_ahead() asks for a build.
+  void invalidate() { skin_ = -1.0; }
 
   /// Calls f(i, j, d, |d|²) for every listed pair that overlaps now (d = x_j − x_i, minimum image).
   template <class PairFunction>
@@ -39,14 +66,21 @@ class VerletList {
     }
   }
 
+  /// Built, and its first `owned` slots hold the particles they held at the build.
+  bool holds(const ParticleStore& store, std::size_t owned) const;
+  /// Positions at the build, per slot.
+  const std::vector<Vec3>& reference() const { return reference_; }
+
   std::size_t pair_count() const { return pairs_.size(); }
   long builds() const { return builds_; }
+  double skin() const { return skin_; }
 
  private:
   LinkedCells cells_;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> pairs_;
   std::vector<Vec3> reference_;
   std::vector<std::int64_t> ids_;
+  std::size_t owned_ = 0;
   double skin_ = -1.0;
   Vec3 period_ = Vec3::Zero();
   Vec3 half_period_ = Vec3::Zero();

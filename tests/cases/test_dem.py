@@ -326,6 +326,36 @@ def slabs_follow_a_settling_bed():
             expect(same, f"{label} slabs along y: the state is bitwise that of 1 rank")
 
 
+def neighbour_list_against_cell_search():
+    """The Verlet list (dem.neighbour_skin, on by default) against the cell search at every
+    step, on a pouring bed with tangential history: the same contacts, and the same states to
+    round-off (only the order in which contact forces are added differs) while the list is
+    rebuilt on a small fraction of the steps. A particle outrunning half the skin in one step
+    stops the run with a message naming it."""
+    common = ["run.t_end=0.02", 'dem.tangential_law="coulomb_spring"', "output.interval=0.01"]
+    cells, s_cells = run_case("dem_settle", *common, "dem.neighbour_skin=0", tag="_cells")
+    listed, s_list = run_case("dem_settle", *common, tag="_listed")
+    last = lambda d: sorted(glob.glob(os.path.join(d, "output_*.h5")))[-1]
+    with h5py.File(last(cells)) as a, h5py.File(last(listed)) as b:
+        dx = np.abs(by_id(a, "position") - by_id(b, "position")).max()
+        dv = np.abs(by_id(a, "velocity") - by_id(b, "velocity")).max()
+        v = np.abs(by_id(a, "velocity")).max()
+    expect(dx <= 1e-12 and dv <= 1e-9 * v, f"list vs cells: positions within {dx:.2g} m, velocities within {dv:.2g} m/s")
+    expect(s_list["counts"]["contacts"] == s_cells["counts"]["contacts"],
+           f"{s_list['counts']['contacts']} contacts with both")
+    steps = 0.02 / s_list["metrics"]["time_step"]
+    builds = s_list["counts"]["neighbour_list_builds"]
+    expect(2 <= builds <= steps / 20, f"{builds} list builds in {steps:.0f} steps")
+    with open(os.path.join(listed, "log.txt")) as f:
+        expect("Verlet list (skin" in f.read(), "the log names the neighbour search")
+    out = scratch("dem_settle_skin_too_small")
+    proc = grainwave("run", case("dem_settle.toml"), "--out", out, "--set", "run.t_end=0.01",
+                     "--set", "dem.neighbour_skin=1e-6")
+    expect(proc.returncode == 3 and "raise dem.neighbour_skin" in proc.stderr and "particle id" in proc.stderr,
+           f"a skin too thin for one step is a numerical failure (exit {proc.returncode}): "
+           f"{proc.stderr.strip().splitlines()[-2:] if proc.stderr else ''}")
+
+
 def read_statistics_csv(out):
     with open(os.path.join(out, "statistics.csv")) as f:
         return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
@@ -381,5 +411,5 @@ if __name__ == "__main__":
                                   hopper_drain_on_2_ranks, curtain_small_state,
                                   channel_small_plug_flow, channel_full, curtain_full,
                                   hopper_restart_bitwise, dense_bed_on_1_and_2_ranks,
-                                  slabs_follow_a_settling_bed,
+                                  slabs_follow_a_settling_bed, neighbour_list_against_cell_search,
                                   rough_hopper_walls]})

@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <random>
+#include <type_traits>
 #include <string>
 
 namespace gw = grainwave::particles;
@@ -74,19 +75,63 @@ std::vector<std::array<double, 10>> gather_state(const gw::ParticleStore& s) {
   return rows;
 }
 
+/// With a Verlet list, the protocol of DemSystem::prepare_neighbour_list for one run: before
+/// each step the list is checked against the step's predicted positions (on every rank at
+/// once); a rebuild migrates the particles and exchanges the ghosts first, and between rebuilds
+/// the ghosts are only refreshed before each evaluation.
+struct ListedRun {
+  dem::SlabDecomposition* slabs = nullptr;  ///< null: serial
+  std::vector<Vec3> ahead;
+  std::int64_t migrated = 0;
+  long builds = 0;
+
+  template <class Integrator>
+  void prepare(gw::ParticleStore& store, dem::ContactForceField& field, Integrator& integrator,
+               double dt, const dem::BeforeEvaluation& refresh) {
+    dem::VelocityVerlet* verlet = nullptr;
+    if constexpr (std::is_same_v<Integrator, dem::VelocityVerlet>) verlet = &integrator;
+    auto rebuild = [&] {
+      if (slabs) {
+        migrated += static_cast<std::int64_t>(slabs->migrate(
+            store, verlet && verlet->has_forces() ? &verlet->stored_forces() : nullptr,
+            verlet && verlet->has_forces() ? &verlet->stored_torques() : nullptr,
+            field.model().tangential->needs_history() ? &field.history() : nullptr));
+        slabs->exchange_ghosts(store);
+      }
+      field.build_list(store);
+      dem::SlabDecomposition::strip_ghosts(store);
+      ++builds;
+    };
+    if (verlet && !verlet->has_forces()) {
+      rebuild();
+      verlet->prime(store, field, dt, refresh);
+      dem::SlabDecomposition::strip_ghosts(store);
+    }
+    if (verlet) verlet->displacement_ahead(store, dt, ahead);
+    else dem::RungeKutta2::displacement_ahead(store, dt, ahead);
+    if (mpi::any(field.list_stale_ahead(store, ahead) != dem::VerletList::kValid)) rebuild();
+  }
+};
+
 void expect_same_as_serial(const std::string& tangential_law, bool runge_kutta, bool recut = false,
-                           int axis = 0) {
+                           int axis = 0, double skin = 0.0) {
   Gas serial(tangential_law), split(tangential_law);
+  for (Gas* gas : {&serial, &split}) {
+    gas->settings.verlet_skin = skin;
+    gas->settings.verlet_managed = skin > 0;
+  }
   const int ranks = mpi::size();
   const auto cuts = dem::SlabDecomposition::balanced_cuts(split.domain, axis, split.store, ranks);
-  dem::SlabDecomposition slabs(split.domain, axis, cuts, split.settings.cell_width);
+  dem::SlabDecomposition slabs(split.domain, axis, cuts, split.settings.cell_width + skin);
   slabs.keep_owned(split.store);
   dem::ContactForceField serial_field(serial.model, serial.domain, serial.settings);
   dem::ContactForceField split_field(split.model, split.domain, split.settings);
 
   // Contact forces on the starting configuration: bitwise the serial ones.
+  if (skin > 0) serial_field.build_list(serial.store);
   serial_field.evaluate(serial.store, dem::HistoryStage::kPredict, serial.dt);
   slabs.exchange_ghosts(split.store);
+  if (skin > 0) split_field.build_list(split.store);
   split_field.evaluate(split.store, dem::HistoryStage::kPredict, split.dt);
   long ghosts = 0, mismatched = 0;
   for (std::size_t i = 0; i < split.store.size(); ++i) {
@@ -111,9 +156,19 @@ void expect_same_as_serial(const std::string& tangential_law, bool runge_kutta, 
   // Then 3000 steps: the same trajectories, bit for bit, with particles migrating.
   dem::VelocityVerlet serial_verlet, split_verlet;
   dem::RungeKutta2 serial_rk2, split_rk2;
-  auto ghosts_of = [&](gw::ParticleStore& s) { slabs.exchange_ghosts(s); };
+  dem::BeforeEvaluation ghosts_of = [&](gw::ParticleStore& s) { slabs.exchange_ghosts(s); };
+  if (skin > 0) ghosts_of = [&](gw::ParticleStore& s) { slabs.refresh_ghosts(s); };
   std::int64_t migrated = 0;
+  ListedRun serial_list, split_list;
+  split_list.slabs = &slabs;
   for (int step = 0; step < 3000; ++step) {
+    if (skin > 0 && runge_kutta) {
+      serial_list.prepare(serial.store, serial_field, serial_rk2, serial.dt, {});
+      split_list.prepare(split.store, split_field, split_rk2, split.dt, ghosts_of);
+    } else if (skin > 0) {
+      serial_list.prepare(serial.store, serial_field, serial_verlet, serial.dt, {});
+      split_list.prepare(split.store, split_field, split_verlet, split.dt, ghosts_of);
+    }
     if (runge_kutta) {
       serial_rk2.step(serial.store, serial_field, serial.dt);
       split_rk2.step(split.store, split_field, split.dt, ghosts_of);
@@ -122,6 +177,7 @@ void expect_same_as_serial(const std::string& tangential_law, bool runge_kutta, 
       split_verlet.step(split.store, split_field, split.dt, ghosts_of);
     }
     dem::SlabDecomposition::strip_ghosts(split.store);
+    if (skin > 0) continue;  // the list's rebuilds migrate
     if (recut && axis != 0 && step % 500 == 499) {
       slabs.set_cuts(slabs.rebalanced_cuts(split.store));
     } else if (recut && step % 500 == 499) {
@@ -137,7 +193,12 @@ void expect_same_as_serial(const std::string& tangential_law, bool runge_kutta, 
         split.model.tangential->needs_history() ? &split_field.history() : nullptr));
     ASSERT_TRUE(std::is_sorted(split.store.id.begin(), split.store.id.end())) << "step " << step;
   }
-  migrated = mpi::sum(migrated);
+  migrated = mpi::sum(migrated + split_list.migrated);
+  if (skin > 0) {
+    EXPECT_EQ(split_list.builds, serial_list.builds) << "the list is rebuilt at the serial run's steps";
+    EXPECT_GT(serial_list.builds, 3);
+    EXPECT_LT(serial_list.builds, 300) << "the list is kept for several steps";
+  }
   if (ranks > 1) {
     EXPECT_GT(migrated, 10) << "the test needs particles crossing between slabs";
   }
@@ -184,6 +245,18 @@ TEST(SlabDecomposition, NewCutsMoveParticlesWithTheirHistoryBitwise) {
 
 TEST(SlabDecomposition, SettlingBedCutAlongGravityRebalancedBitwise) {
   expect_same_as_serial("coulomb_spring", false, true, 1);
+}
+
+TEST(SlabDecomposition, VerletListWithRefreshedGhostsBitwiseAsSerial) {
+  expect_same_as_serial("static_friction", false, false, 0, 0.05);
+}
+
+TEST(SlabDecomposition, VerletListHistorySpringsMigrateAtRebuildsBitwise) {
+  expect_same_as_serial("coulomb_spring", false, false, 0, 0.05);
+}
+
+TEST(SlabDecomposition, VerletListRungeKutta2BitwiseAsSerial) {
+  expect_same_as_serial("coulomb_spring", true, false, 0, 0.05);
 }
 
 TEST(SlabDecomposition, OwnerFollowsTheCutsAndWrapsPeriodicAxes) {

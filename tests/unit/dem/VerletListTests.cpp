@@ -122,3 +122,87 @@ TEST(ContactForceField, FusedPassEqualsTheListOfContactsBitwise) {
     EXPECT_GT(walls, 10) << normal;  // the walls' contacts were compared too
   }
 }
+
+// The list as DemSystem manages it (settings.verlet_managed): checked once before each step
+// against the positions the step will evaluate at (VelocityVerlet::displacement_ahead), and
+// rebuilt only then. At every evaluation it must find what the cell search finds there.
+TEST(VerletList, PlannedBeforeTheStepFindsEveryContactOfTheStep) {
+  gw::Domain domain;
+  domain.hi = Vec3(5.0, 5.0, 5.0);
+  domain.face[1] = {gw::FaceKind::kWall, gw::FaceKind::kWall};
+  auto model = dem::make_contact_model("linear_spring_dashpot",
+                                       {{"stiffness", 1e4}, {"restitution", 0.8}},
+                                       "static_friction", {{"friction", 0.3}});
+  dem::ContactForceSettings settings;
+  settings.gravity = Vec3(0.0, -1.0, 0.0);
+  settings.fused = false;
+  dem::ContactForceField cells(model, domain, settings);
+  settings.fused = true;
+  settings.verlet_skin = 0.2;
+  settings.verlet_managed = true;
+  dem::ContactForceField listed(model, domain, settings);
+
+  gw::ParticleStore s;
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (int k = 0; k < 300; ++k) {
+    const double r = 0.15 + 0.1 * u(rng);
+    s.add(k, Vec3(5 * u(rng), 0.3 + 4.4 * u(rng), 5 * u(rng)),
+          Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5), Vec3::Zero(), r, r * r * r,
+          0.4 * r * r * r * r * r);
+  }
+  dem::VelocityVerlet verlet;
+  const double dt = dem::stable_time_step(s, *model.normal, 50);
+  // The cell search at the very state each evaluation of the list sees.
+  auto alongside = [&](gw::ParticleStore& state) { cells.evaluate(state, dem::HistoryStage::kSingle, dt); };
+  std::vector<Vec3> ahead;
+  const int steps = 2000;
+  double worst = 0.0;
+  long contacts_seen = 0;
+  listed.build_list(s);
+  verlet.prime(s, listed, dt);
+  for (int step = 0; step < steps; ++step) {
+    verlet.displacement_ahead(s, dt, ahead);
+    if (listed.list_stale_ahead(s, ahead) != dem::VerletList::kValid) listed.build_list(s);
+    verlet.step(s, listed, dt, alongside);
+    ASSERT_EQ(cells.contacts().size(), listed.contact_count()) << "step " << step;
+    contacts_seen += static_cast<long>(cells.contacts().size());
+    double largest = 1.0;
+    for (const dem::Contact& c : cells.contacts()) largest = std::max(largest, std::abs(c.normal_force));
+    for (std::size_t i = 0; i < s.size(); ++i)
+      worst = std::max(worst, (cells.force()[i] - listed.force()[i]).norm() / largest);
+  }
+  EXPECT_LT(worst, 1e-12);  // only the summation order differs
+  EXPECT_GT(contacts_seen, 1000);
+  EXPECT_GT(listed.verlet_list().builds(), 2);
+  EXPECT_LT(listed.verlet_list().builds(), steps / 5);
+}
+
+TEST(VerletList, StaleAheadNamesTheParticleThatWouldOutrunHalfTheSkin) {
+  gw::Domain domain;
+  domain.hi = Vec3(4.0, 4.0, 4.0);
+  gw::ParticleStore s;
+  for (int k = 0; k < 8; ++k)
+    s.add(k, Vec3(0.5 + (k % 2) * 2.0, 0.5 + (k / 2 % 2) * 2.0, 0.5 + (k / 4) * 2.0), Vec3::Zero(),
+          Vec3::Zero(), 0.4, 1.0, 0.1);
+  dem::VerletList list;
+  std::vector<Vec3> ahead(s.size(), Vec3::Zero());
+  EXPECT_EQ(list.stale_ahead(s, s.size(), ahead, domain), dem::VerletList::kOtherSlots);  // never built
+  list.build(s, domain, 1.0, 0.2);
+  EXPECT_EQ(list.stale_ahead(s, s.size(), ahead, domain), dem::VerletList::kValid);
+  ahead[5] = Vec3(0.0, 0.099, 0.0);  // within skin/2
+  EXPECT_EQ(list.stale_ahead(s, s.size(), ahead, domain), dem::VerletList::kValid);
+  ahead[5] = Vec3(0.0, 0.101, 0.0);  // past it during the step
+  EXPECT_EQ(list.stale_ahead(s, s.size(), ahead, domain), 5);
+  ahead[5].setZero();
+  s.position[3] += Vec3(0.0, 0.0, -0.11);  // past it already
+  s.position[2] += Vec3(0.0, 0.0, -0.6);   // through the periodic face, wrapped: 0.6 away
+  domain.wrap(s.position[2]);
+  EXPECT_EQ(list.stale_ahead(s, s.size(), ahead, domain), 2);
+  s.position[2] = list.reference()[2] + Vec3(0.0, 0.0, 0.05);
+  EXPECT_EQ(list.stale_ahead(s, s.size(), ahead, domain), 3);
+  s.position[3] = list.reference()[3];
+  EXPECT_EQ(list.stale_ahead(s, s.size(), ahead, domain), dem::VerletList::kValid);
+  s.remove(7);  // other particles in the slots
+  EXPECT_EQ(list.stale_ahead(s, s.size(), ahead, domain), dem::VerletList::kOtherSlots);
+}
