@@ -93,14 +93,20 @@ void ContactForceField::external_forces(const ParticleStore& store) {
     const std::int64_t ghost_id = store.id[i_owned ? c.partner : c.i];
     if (owned_id < ghost_id) ++contact_count_;
   }
+  // Compared without a division per contact (the quotient is formed only for a new deepest).
   const double r = c.is_wall ? store.radius[c.i] : std::min(store.radius[c.i], store.radius[c.partner]);
-  const double depth = c.overlap / r;
-  if (depth > deepest_.overlap_over_radius)
-    deepest_ = DeepestContact{depth, c.i, c.partner, c.is_wall, store.id[c.i]};
+  if (c.overlap > deepest_.overlap_over_radius * r) {
+    const double depth = c.overlap / r;
+    if (depth > deepest_.overlap_over_radius)
+      deepest_ = DeepestContact{depth, c.i, c.partner, c.is_wall, store.id[c.i]};
+  }
 }
 
+// Flattened: the pair test, the contact's geometry and the caller's force law become one loop
+// body, so the contact's fields stay in registers and consecutive contacts' long-latency
+// chains (square roots, divisions) overlap.
 template <class ContactFunction>
-void ContactForceField::for_each_contact(const ParticleStore& store, ContactFunction&& f) {
+[[gnu::flatten]] void ContactForceField::for_each_contact(const ParticleStore& store, ContactFunction&& f) {
   Contact c;
   auto pair = [&](std::uint32_t i, std::uint32_t j, const Vec3& d, double distance2) {
     if (particle_contact(store, i, j, d, distance2, c)) f(c);
