@@ -1,13 +1,16 @@
 #include "particles/dem/ContactForceField.hpp"
 
 #include "core/Error.hpp"
+#include "particles/dem/CoulombSpring.hpp"
 #include "particles/dem/HertzNormal.hpp"
 #include "particles/dem/LinearSpringDashpot.hpp"
+#include "particles/dem/Mindlin.hpp"
 #include "particles/dem/StaticFriction.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <type_traits>
 
 namespace grainwave::particles::dem {
 
@@ -142,24 +145,54 @@ template <class ContactFunction>
   }
 }
 
+void ContactForceField::touch_history(const ParticleStore& store, Contact& c) {
+  if (!c.is_wall && store.id[c.i] > store.id[c.partner]) {
+    // Canonical orientation (see the header): the same contact seen from the other side.
+    std::swap(c.i, c.partner);
+    c.normal = -c.normal;
+    c.relative_velocity = -c.relative_velocity;
+  }
+  const std::int64_t other = c.is_wall ? ContactHistory::wall_key(c.partner) : store.id[c.partner];
+  c.history = history_.touch(store.id[c.i], other);
+}
+
 template <class Normal, class Tangential>
 void ContactForceField::evaluate_fused(const ParticleStore& store, const Normal& normal,
-                                       const Tangential& tangential) {
+                                       const Tangential& tangential, HistoryStage stage, double dt) {
   // The batched path adds the external forces first and then the contacts in list order, which
-  // is the order they are found in: the same sums in the same order here.
+  // is the order they are found in: the same sums in the same order here. A history law's
+  // entry is looked up and advanced where the contact is found; each contact uses its entry
+  // at once, so room can be made between contacts (entries move, none is held).
+  constexpr bool keeps_history = !std::is_same_v<Tangential, StaticFriction>;
+  if constexpr (keeps_history) history_.prepare();
   external_forces(store);
   for_each_contact(store, [&](Contact& c) {
+    if constexpr (keeps_history) {
+      if (history_.nearly_full()) history_.make_room();
+      touch_history(store, c);
+    }
     c.normal_force = normal.force(c);
-    c.tangential_force = tangential.force(c);
+    if constexpr (keeps_history) advance_history(tangential, c, stage, dt);
+    else c.tangential_force = tangential.force(c);
     note_depth(store, c);
     apply(store, c);
   });
 }
 
 template <class Normal>
-bool ContactForceField::try_fused(const ParticleStore& store, const Normal& normal) {
-  if (const auto* friction = dynamic_cast<const StaticFriction*>(model_.tangential.get())) {
-    evaluate_fused(store, normal, *friction);
+bool ContactForceField::try_fused(const ParticleStore& store, const Normal& normal, HistoryStage stage,
+                                  double dt) {
+  const TangentialLaw* law = model_.tangential.get();
+  if (const auto* friction = dynamic_cast<const StaticFriction*>(law)) {
+    evaluate_fused(store, normal, *friction, stage, dt);
+    return true;
+  }
+  if (const auto* spring = dynamic_cast<const CoulombSpring*>(law)) {
+    evaluate_fused(store, normal, *spring, stage, dt);
+    return true;
+  }
+  if (const auto* mindlin = dynamic_cast<const Mindlin*>(law)) {
+    evaluate_fused(store, normal, *mindlin, stage, dt);
     return true;
   }
   return false;
@@ -227,10 +260,12 @@ void ContactForceField::evaluate(const ParticleStore& store, HistoryStage stage,
     } else if (verlet_.stale(store, domain_)) {
       verlet_.build(store, domain_, search_cell_width(store, skin), skin);
     }
-    if (settings_.fused && !model_.tangential->needs_history()) {
-      if (const auto* law = dynamic_cast<const LinearSpringDashpot*>(model_.normal.get()); law && try_fused(store, *law))
+    if (settings_.fused) {
+      if (const auto* law = dynamic_cast<const LinearSpringDashpot*>(model_.normal.get());
+          law && try_fused(store, *law, stage, dt))
         return;
-      if (const auto* law = dynamic_cast<const HertzNormal*>(model_.normal.get()); law && try_fused(store, *law))
+      if (const auto* law = dynamic_cast<const HertzNormal*>(model_.normal.get());
+          law && try_fused(store, *law, stage, dt))
         return;
     }
     for_each_contact(store, [&](const Contact& c) { contacts_.push_back(c); });
@@ -243,16 +278,7 @@ void ContactForceField::evaluate(const ParticleStore& store, HistoryStage stage,
         history_.make_room();  // entries moved: look up the contacts done so far again
         k = 0;
       }
-      Contact& c = contacts_[k];
-      if (!c.is_wall && store.id[c.i] > store.id[c.partner]) {
-        // Canonical orientation (see the header): the same contact seen from the other side.
-        std::swap(c.i, c.partner);
-        c.normal = -c.normal;
-        c.relative_velocity = -c.relative_velocity;
-      }
-      const std::int64_t other = c.is_wall ? ContactHistory::wall_key(c.partner)
-                                           : store.id[c.partner];
-      c.history = history_.touch(store.id[c.i], other);
+      touch_history(store, contacts_[k]);
     }
   }
   model_.normal->evaluate(contacts_);

@@ -69,9 +69,10 @@ struct ContactForceSettings {
   /// list works with ghosts (a domain-decomposed run); without, the list checks itself at each
   /// evaluation and ghosts fall back to the cell search.
   bool verlet_managed = false;
-  /// With a tangential law without history, each contact's forces are computed and added where
-  /// the pair is found, without a list of contacts (bitwise the same forces: the same
-  /// arithmetic, added in the same order). false keeps the list (contacts()) for every law.
+  /// For the built-in laws, each contact's forces are computed (with a history law, its entry
+  /// looked up and advanced) and added where the pair is found, without a list of contacts
+  /// (bitwise the same forces and history: the same arithmetic, added in the same order).
+  /// false keeps the list (contacts()) for every law.
   bool fused = true;
   /// Particle count that sizes the cell grid (LinkedCells::build); 0: the store's size. A
   /// domain-decomposed run sets the global count so that every rank uses the serial grid.
@@ -104,7 +105,8 @@ class ContactForceField {
   const std::vector<Vec3>& force() const { return force_; }
   const std::vector<Vec3>& torque() const { return torque_; }
   /// Contacts found by the last evaluation (particle pairs and wall contacts), when it kept the
-  /// list: always with a history law or settings().fused = false, otherwise empty.
+  /// list: with settings().fused = false or a law of another type than the built-in ones,
+  /// otherwise empty.
   const std::vector<Contact>& contacts() const { return contacts_; }
   /// How many contacts the last evaluation found, and the deepest (either way of evaluating).
   std::size_t contact_count() const { return contact_count_; }
@@ -136,9 +138,13 @@ class ContactForceField {
   /// Adds a contact's forces to force_ and torque_ of its particles.
   void apply(const ParticleStore& store, const Contact& c);
   void note_depth(const ParticleStore& store, const Contact& c);
-  /// One pass: every contact's forces computed and added where it is found (no history).
+  /// Puts a particle contact in the canonical orientation and sets its history entry.
+  void touch_history(const ParticleStore& store, Contact& c);
+  /// One pass: every contact's forces computed (its history looked up and advanced) and added
+  /// where it is found.
   template <class Normal, class Tangential>
-  void evaluate_fused(const ParticleStore& store, const Normal& normal, const Tangential& tangential);
+  void evaluate_fused(const ParticleStore& store, const Normal& normal, const Tangential& tangential,
+                      HistoryStage stage, double dt);
   /// Per-slot scratch of an evaluation or a build: inverse masses, where the ghosts begin, and
   /// with ghosts the merged id order of the slots.
   void prepare_slots(const ParticleStore& store);
@@ -146,7 +152,7 @@ class ContactForceField {
   double search_cell_width(const ParticleStore& store, double skin) const;
   /// The fused pass for these laws if they are of known final types; false otherwise.
   template <class Normal>
-  bool try_fused(const ParticleStore& store, const Normal& normal);
+  bool try_fused(const ParticleStore& store, const Normal& normal, HistoryStage stage, double dt);
 
   ContactModel model_;
   Domain domain_;

@@ -5,13 +5,23 @@
 
 namespace grainwave::particles::dem {
 
-std::size_t ContactHistory::home(std::int64_t a, std::int64_t /*b*/) const {
-  // All contacts of the particle with the smaller id a share a home and sit side by side, and
-  // consecutive ids get consecutive homes (4 slots each), so the lookups of a cell-ordered
-  // contact list walk the table nearly sequentially. The high bits are mixed in so that large,
-  // sparse ids (after MPI migration) still spread over the table. Capacity is a power of two.
-  const auto u = static_cast<std::uint64_t>(a);
-  return static_cast<std::size_t>(4 * u + (u >> 16) * 0x9E3779B97F4A7C15ull) & (slots_.size() - 1);
+std::size_t ContactHistory::home(std::int64_t a, std::int64_t b) const {
+  // Homes follow the particle id: all contacts of the particle with the smaller id (a wall's
+  // contact: of its particle) sit side by side, and consecutive ids get homes `stride_` apart,
+  // the stride spreading the ids seen over the whole table; so the lookups of a cell-ordered
+  // contact list walk the table nearly sequentially and the local load is the table's load.
+  // (Keyed by the wall instead, a floor's contacts would all share one home.)
+  return static_cast<std::size_t>(stride_ * static_cast<std::uint64_t>(a < 0 ? b : a)) &
+         (slots_.size() - 1);
+}
+
+void ContactHistory::note_key(std::int64_t a, std::int64_t b) {
+  const auto key = static_cast<std::uint64_t>(a < 0 ? b : a);
+  if (key >= id_span_) id_span_ = key + 1;
+}
+
+void ContactHistory::choose_stride(std::size_t capacity) {
+  stride_ = id_span_ > 0 ? std::max<std::uint64_t>(1, capacity / id_span_) : 4;
 }
 
 void ContactHistory::prepare() {
@@ -28,6 +38,7 @@ void ContactHistory::make_room() {
 }
 
 void ContactHistory::rehash(std::size_t new_capacity) {
+  choose_stride(new_capacity);
   spare_.assign(new_capacity, ContactHistoryEntry{});
   std::swap(slots_, spare_);
   occupied_ = 0;
@@ -42,6 +53,7 @@ void ContactHistory::rehash(std::size_t new_capacity) {
 
 ContactHistoryEntry* ContactHistory::touch(std::int64_t a, std::int64_t b) {
   if (a > b) std::swap(a, b);
+  note_key(a, b);
   std::size_t k = home(a, b);
   while (true) {
     ContactHistoryEntry& e = slots_[k];
@@ -75,6 +87,17 @@ const ContactHistoryEntry* ContactHistory::find(std::int64_t a, std::int64_t b) 
   return nullptr;
 }
 
+double ContactHistory::mean_probe_length() const {
+  std::size_t entries = 0, probes = 0;
+  for (std::size_t k = 0; k < slots_.size(); ++k) {
+    const ContactHistoryEntry& e = slots_[k];
+    if (e.last_step < 0) continue;
+    ++entries;
+    probes += ((k - home(e.first, e.second)) & (slots_.size() - 1)) + 1;
+  }
+  return entries > 0 ? static_cast<double>(probes) / static_cast<double>(entries) : 0.0;
+}
+
 std::size_t ContactHistory::live_count() const {
   return static_cast<std::size_t>(std::count_if(
       slots_.begin(), slots_.end(), [this](const ContactHistoryEntry& e) {
@@ -105,6 +128,7 @@ void ContactHistory::adopt(const ContactHistoryEntry& entry) {
   if (const ContactHistoryEntry* here = find(entry.first, entry.second);
       here && here->last_step >= entry.last_step)
     return;
+  note_key(entry.first, entry.second);
   if (slots_.empty() || nearly_full()) make_room();
   std::size_t k = home(entry.first, entry.second);
   while (slots_[k].last_step >= 0 &&
@@ -118,6 +142,8 @@ void ContactHistory::restore(std::int64_t step, const std::vector<ContactHistory
   step_ = step;
   std::size_t capacity = 64;
   while (2 * (entries.size() + 1) > capacity) capacity *= 2;
+  for (const ContactHistoryEntry& e : entries) note_key(e.first, e.second);
+  choose_stride(capacity);
   slots_.assign(capacity, ContactHistoryEntry{});
   occupied_ = 0;
   for (const ContactHistoryEntry& e : entries) {

@@ -62,17 +62,26 @@ class ContactHistory {
   /// slots than before, which changes nothing: lookups go by the id pair.
   void restore(std::int64_t step, const std::vector<ContactHistoryEntry>& entries);
   std::size_t capacity() const { return slots_.size(); }
+  /// Mean number of slots a lookup of a stored entry reads (1 when every entry sits at its
+  /// home): how well the table spreads its keys.
+  double mean_probe_length() const;
   std::int64_t step() const { return step_; }
   static constexpr std::size_t bytes_per_entry() { return sizeof(ContactHistoryEntry); }
 
  private:
   bool live(const ContactHistoryEntry& e) const { return e.last_step >= step_ - 1; }
   std::size_t home(std::int64_t a, std::int64_t b) const;
+  /// Widens id_span_ to the key's particle id.
+  void note_key(std::int64_t a, std::int64_t b);
+  /// stride_ for a table of `capacity` slots: the ids seen spread over all of it.
+  void choose_stride(std::size_t capacity);
   void rehash(std::size_t new_capacity);
 
   std::vector<ContactHistoryEntry> slots_;
   std::vector<ContactHistoryEntry> spare_;
   std::size_t occupied_ = 0;  ///< non-empty slots, live or stale
+  std::uint64_t id_span_ = 0;  ///< one past the largest particle id keyed so far
+  std::uint64_t stride_ = 4;   ///< slots between the homes of consecutive ids
   std::int64_t step_ = 0;
 };
 

@@ -38,37 +38,42 @@ inline Vec3 rotate_into_plane(const Vec3& v, const Vec3& normal) {
   return projected * std::sqrt(length2 / projected2);
 }
 
-/// Drives a history law over a batch. `Law` provides
+/// Advances one contact's history and sets its tangential force. `Law` provides
 ///   Vec3 spring_force(const Contact&, const Vec3& v_t, Vec3& displacement) const
-/// (inline, may shorten the displacement at the Coulomb limit).
+/// (inline, may shorten the displacement at the Coulomb limit). c.history is set and
+/// c.normal_force written.
+template <class Law>
+inline void advance_history(const Law& law, Contact& c, HistoryStage stage, double dt) {
+  ContactHistoryEntry& h = *c.history;
+  const Vec3 vt = c.tangential_velocity();
+  Vec3 xi = rotate_into_plane(h.displacement, c.normal);
+  if (stage == HistoryStage::kSingle) {
+    // Trapezoidal δ_t(n+1) = δ_t(n) + Δt/2 (v_t(n) + v_t(n+1)); a new contact has no v_t(n).
+    const Vec3 vt_old = h.is_new ? vt : rotate_into_plane(h.stage_velocity, c.normal);
+    xi += 0.5 * dt * (vt_old + vt);
+    c.tangential_force = law.spring_force(c, vt, xi);
+    h.displacement = xi;
+    h.stage_velocity = vt;
+  } else if (stage == HistoryStage::kPredict) {
+    c.tangential_force = law.spring_force(c, vt, xi);
+    h.displacement = xi;
+    h.stage_velocity = vt;
+  } else {
+    const Vec3 vt_first = h.is_new ? vt : rotate_into_plane(h.stage_velocity, c.normal);
+    Vec3 predicted = xi + dt * vt_first;
+    c.tangential_force = law.spring_force(c, vt, predicted);
+    Vec3 committed = xi + 0.5 * dt * (vt_first + vt);
+    law.spring_force(c, vt, committed);  // apply the Coulomb limit to the committed value
+    h.displacement = committed;
+  }
+  h.is_new = false;
+}
+
+/// Drives a history law over a batch (advance_history per contact).
 template <class Law>
 void evaluate_with_history(const Law& law, std::span<Contact> contacts, HistoryStage stage,
                            double dt) {
-  for (Contact& c : contacts) {
-    ContactHistoryEntry& h = *c.history;
-    const Vec3 vt = c.tangential_velocity();
-    Vec3 xi = rotate_into_plane(h.displacement, c.normal);
-    if (stage == HistoryStage::kSingle) {
-      // Trapezoidal δ_t(n+1) = δ_t(n) + Δt/2 (v_t(n) + v_t(n+1)); a new contact has no v_t(n).
-      const Vec3 vt_old = h.is_new ? vt : rotate_into_plane(h.stage_velocity, c.normal);
-      xi += 0.5 * dt * (vt_old + vt);
-      c.tangential_force = law.spring_force(c, vt, xi);
-      h.displacement = xi;
-      h.stage_velocity = vt;
-    } else if (stage == HistoryStage::kPredict) {
-      c.tangential_force = law.spring_force(c, vt, xi);
-      h.displacement = xi;
-      h.stage_velocity = vt;
-    } else {
-      const Vec3 vt_first = h.is_new ? vt : rotate_into_plane(h.stage_velocity, c.normal);
-      Vec3 predicted = xi + dt * vt_first;
-      c.tangential_force = law.spring_force(c, vt, predicted);
-      Vec3 committed = xi + 0.5 * dt * (vt_first + vt);
-      law.spring_force(c, vt, committed);  // apply the Coulomb limit to the committed value
-      h.displacement = committed;
-    }
-    h.is_new = false;
-  }
+  for (Contact& c : contacts) advance_history(law, c, stage, dt);
 }
 
 }  // namespace grainwave::particles::dem

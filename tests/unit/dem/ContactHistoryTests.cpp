@@ -189,3 +189,36 @@ TEST(ContactHistory, AdoptedEntryReplacesAnOlderCopyOnly) {
   here.adopt(dem::ContactHistoryEntry{4, 9, 2, Vec3(0, 3, 0), Vec3::Zero(), false});
   EXPECT_EQ(here.find(4, 9)->displacement, Vec3(0, 3, 0));
 }
+
+// The table keeps lookups short for what a dense bed asks of it: 20 000 particles with ids
+// 0..N-1, three or four contacts each (the pair stored under the smaller id) and a thousand
+// contacts with one floor wall, renewed over many steps so that stale entries accumulate up
+// to the purge. Homes were once spaced 4 slots by id whatever the capacity (a long run of
+// occupied slots where the ids crowded) and a wall's contacts all shared the wall's home.
+TEST(ContactHistory, LookupsStayShortForDenseIdsAndWallContacts) {
+  dem::ContactHistory history;
+  const std::int64_t n = 20000;
+  for (int step = 0; step < 40; ++step) {
+    history.begin_step();
+    history.prepare();
+    for (std::int64_t a = 0; a < n; ++a) {
+      // Partners shift slowly with the step: some contacts end, new ones begin.
+      for (const std::int64_t offset : {std::int64_t{1}, std::int64_t{2}, 37 + (a + step / 10) % 3, std::int64_t{53}})
+        if (a + offset < n && (offset != 53 || (a + step) % 4 == 0)) {
+          if (history.nearly_full()) history.make_room();
+          history.touch(a, a + offset);
+        }
+      if (a < 1000) {
+        if (history.nearly_full()) history.make_room();
+        history.touch(a, dem::ContactHistory::wall_key(0));
+      }
+    }
+  }
+  const double probes = history.mean_probe_length();
+  std::printf("%zu live entries in %zu slots, mean probe length %.2f\n", history.live_count(),
+              history.capacity(), probes);
+  // A particle's k entries sit side by side from its home, (k + 1) / 2 probes on average: about
+  // 3 for the 4-5 entries (live and stale) each holds here. (The old homes: about 20 000.)
+  EXPECT_LT(probes, 5.0);
+  EXPECT_GT(history.live_count(), static_cast<std::size_t>(3 * n));
+}
