@@ -15,10 +15,40 @@ namespace gw = grainwave::particles;
 namespace dem = grainwave::particles::dem;
 using gw::Vec3;
 
-TEST(VerletList, SameForcesAsCellSearchThroughoutAGranularGas) {
+namespace {
+
+/// A 5 x 5 x 5 box, periodic in x and z, with walls at the bottom and top in y.
+gw::Domain gas_box() {
   gw::Domain domain;
   domain.hi = Vec3(5.0, 5.0, 5.0);
   domain.face[1] = {gw::FaceKind::kWall, gw::FaceKind::kWall};
+  return domain;
+}
+
+/// 300 spheres of radii 0.15-0.25 at random in gas_box(), with random velocities and, when
+/// `spinning`, random angular velocities.
+gw::ParticleStore granular_gas(unsigned seed, bool spinning) {
+  gw::ParticleStore s;
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  auto centred = [&] {
+    const double x = u(rng) - 0.5, y = u(rng) - 0.5;
+    return Vec3(x, y, u(rng) - 0.5);
+  };
+  for (int k = 0; k < 300; ++k) {
+    const double r = 0.15 + 0.1 * u(rng);
+    const double x = 5 * u(rng), y = 0.3 + 4.4 * u(rng), z = 5 * u(rng);
+    const Vec3 v = centred();
+    const Vec3 w = spinning ? centred() : Vec3::Zero();
+    s.add(k, Vec3(x, y, z), v, w, r, r * r * r, 0.4 * r * r * r * r * r);
+  }
+  return s;
+}
+
+}  // namespace
+
+TEST(VerletList, SameForcesAsCellSearchThroughoutAGranularGas) {
+  const gw::Domain domain = gas_box();
   auto model = dem::make_contact_model("linear_spring_dashpot",
                                        {{"stiffness", 1e4}, {"restitution", 0.8}},
                                        "static_friction", {{"friction", 0.3}});
@@ -31,15 +61,7 @@ TEST(VerletList, SameForcesAsCellSearchThroughoutAGranularGas) {
   settings.verlet_skin = 0.2;
   dem::ContactForceField listed(model, domain, settings);
 
-  gw::ParticleStore s;
-  std::mt19937 rng(11);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  for (int k = 0; k < 300; ++k) {
-    const double r = 0.15 + 0.1 * u(rng);
-    s.add(k, Vec3(5 * u(rng), 0.3 + 4.4 * u(rng), 5 * u(rng)),
-          Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5), Vec3::Zero(), r, r * r * r,
-          0.4 * r * r * r * r * r);
-  }
+  gw::ParticleStore s = granular_gas(11, false);
   dem::VelocityVerlet verlet;
   const double dt = dem::stable_time_step(s, *model.normal, 50);
   const int steps = 2000;
@@ -72,9 +94,7 @@ TEST(VerletList, SameForcesAsCellSearchThroughoutAGranularGas) {
 // for both normal laws, with walls and a finite wall segment, through a granular gas.
 TEST(ContactForceField, FusedPassEqualsTheListOfContactsBitwise) {
   for (const char* normal : {"linear_spring_dashpot", "hertz"}) {
-    gw::Domain domain;
-    domain.hi = Vec3(5.0, 5.0, 5.0);
-    domain.face[1] = {gw::FaceKind::kWall, gw::FaceKind::kWall};
+    const gw::Domain domain = gas_box();
     const dem::LawParameters normal_parameters =
         std::string(normal) == "hertz"
             ? dem::LawParameters{{"youngs_modulus", 1e5}, {"restitution", 0.8}, {"reference_velocity", 1.0}}
@@ -91,14 +111,7 @@ TEST(ContactForceField, FusedPassEqualsTheListOfContactsBitwise) {
     const auto ledge = dem::FiniteWall::rectangle(Vec3(2.5, 1.25, 2.5), Vec3(3.0, 0.5, 0.0), Vec3::UnitZ(), 3.0, 5.0);
     for (auto* field : {&fused, &listed}) field->finite_walls().push_back(ledge);
 
-    gw::ParticleStore s;
-    std::mt19937 rng(5);
-    std::uniform_real_distribution<double> u(0.0, 1.0);
-    for (int k = 0; k < 300; ++k) {
-      const double r = 0.15 + 0.1 * u(rng);
-      s.add(k, Vec3(5 * u(rng), 0.3 + 4.4 * u(rng), 5 * u(rng)), Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5),
-            Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5), r, r * r * r, 0.4 * r * r * r * r * r);
-    }
+    gw::ParticleStore s = granular_gas(5, true);
     dem::VelocityVerlet verlet;
     const double dt = dem::stable_time_step(s, *model.normal, 50);
     long contacts = 0, walls = 0;
@@ -130,9 +143,7 @@ TEST(ContactForceField, FusedPassEqualsTheListOfContactsBitwise) {
 // against the positions the step will evaluate at (VelocityVerlet::displacement_ahead), and
 // rebuilt only then. At every evaluation it must find what the cell search finds there.
 TEST(VerletList, PlannedBeforeTheStepFindsEveryContactOfTheStep) {
-  gw::Domain domain;
-  domain.hi = Vec3(5.0, 5.0, 5.0);
-  domain.face[1] = {gw::FaceKind::kWall, gw::FaceKind::kWall};
+  const gw::Domain domain = gas_box();
   auto model = dem::make_contact_model("linear_spring_dashpot",
                                        {{"stiffness", 1e4}, {"restitution", 0.8}},
                                        "static_friction", {{"friction", 0.3}});
@@ -145,15 +156,7 @@ TEST(VerletList, PlannedBeforeTheStepFindsEveryContactOfTheStep) {
   settings.verlet_managed = true;
   dem::ContactForceField listed(model, domain, settings);
 
-  gw::ParticleStore s;
-  std::mt19937 rng(11);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  for (int k = 0; k < 300; ++k) {
-    const double r = 0.15 + 0.1 * u(rng);
-    s.add(k, Vec3(5 * u(rng), 0.3 + 4.4 * u(rng), 5 * u(rng)),
-          Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5), Vec3::Zero(), r, r * r * r,
-          0.4 * r * r * r * r * r);
-  }
+  gw::ParticleStore s = granular_gas(11, false);
   dem::VelocityVerlet verlet;
   const double dt = dem::stable_time_step(s, *model.normal, 50);
   // The cell search at the very state each evaluation of the list sees.
@@ -225,9 +228,7 @@ TEST(ContactForceField, FusedHistoryPassEqualsTheListOfContactsBitwise) {
   for (const Law& law : laws)
     for (const bool runge_kutta : {false, true}) {
       SCOPED_TRACE(std::string(law.tangential) + (runge_kutta ? " RK2" : " velocity Verlet"));
-      gw::Domain domain;
-      domain.hi = Vec3(5.0, 5.0, 5.0);
-      domain.face[1] = {gw::FaceKind::kWall, gw::FaceKind::kWall};
+      const gw::Domain domain = gas_box();
       const std::string tangential = law.tangential;
       auto model = dem::make_contact_model(
           tangential == "mindlin" ? "hertz" : "linear_spring_dashpot",
@@ -242,15 +243,7 @@ TEST(ContactForceField, FusedHistoryPassEqualsTheListOfContactsBitwise) {
       dem::ContactForceField fused(model, domain, settings);
       settings.fused = false;
       dem::ContactForceField listed(model, domain, settings);
-      gw::ParticleStore s;
-      std::mt19937 rng(7);
-      std::uniform_real_distribution<double> u(0.0, 1.0);
-      for (int k = 0; k < 300; ++k) {
-        const double r = 0.15 + 0.1 * u(rng);
-        s.add(k, Vec3(5 * u(rng), 0.3 + 4.4 * u(rng), 5 * u(rng)),
-              Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5), Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5),
-              r, r * r * r, 0.4 * r * r * r * r * r);
-      }
+      gw::ParticleStore s = granular_gas(7, true);
       const double dt = dem::stable_time_step(s, *model.normal, 50);
       // The batched field evaluated at the very state, and stage, of each evaluation of the fused.
       int evaluation = 0;
