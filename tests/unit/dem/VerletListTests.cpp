@@ -45,13 +45,44 @@ gw::ParticleStore granular_gas(unsigned seed, bool spinning) {
   return s;
 }
 
+/// Linear spring-dashpot with static friction, as the cell-search comparisons use.
+dem::ContactModel frictional_model() {
+  return dem::make_contact_model("linear_spring_dashpot", {{"stiffness", 1e4}, {"restitution", 0.8}},
+                                 "static_friction", {{"friction", 0.3}});
+}
+
+/// Largest difference between the forces of two evaluations of the same state, relative to the
+/// largest single contact force of `cells` (which sets the size of a rounding difference):
+/// contact forces summed in another order round differently.
+double worst_force_difference(const dem::ContactForceField& cells, const dem::ContactForceField& other,
+                              std::size_t n) {
+  double largest = 1.0;
+  for (const dem::Contact& c : cells.contacts()) largest = std::max(largest, std::abs(c.normal_force));
+  double worst = 0.0;
+  for (std::size_t i = 0; i < n; ++i) worst = std::max(worst, (cells.force()[i] - other.force()[i]).norm() / largest);
+  return worst;
+}
+
+/// One contact model evaluated two ways, under gravity with a Verlet list: the fused pass (the
+/// default) and the batched one that keeps the list of contacts.
+struct FusedAndListed {
+  dem::ContactForceField fused, listed;
+  FusedAndListed(const dem::ContactModel& model, const gw::Domain& domain)
+      : fused(model, domain, settings(true)), listed(model, domain, settings(false)) {}
+  static dem::ContactForceSettings settings(bool fused) {
+    dem::ContactForceSettings s;
+    s.gravity = Vec3(0.0, -1.0, 0.0);
+    s.verlet_skin = 0.2;
+    s.fused = fused;
+    return s;
+  }
+};
+
 }  // namespace
 
 TEST(VerletList, SameForcesAsCellSearchThroughoutAGranularGas) {
   const gw::Domain domain = gas_box();
-  auto model = dem::make_contact_model("linear_spring_dashpot",
-                                       {{"stiffness", 1e4}, {"restitution", 0.8}},
-                                       "static_friction", {{"friction", 0.3}});
+  const auto model = frictional_model();
   dem::ContactForceSettings settings;
   settings.gravity = Vec3(0.0, -1.0, 0.0);
   dem::ContactForceField driver(model, domain, settings);
@@ -73,12 +104,7 @@ TEST(VerletList, SameForcesAsCellSearchThroughoutAGranularGas) {
     listed.evaluate(s, dem::HistoryStage::kSingle, dt);
     ASSERT_EQ(cells.contacts().size(), listed.contact_count()) << "step " << step;
     contacts_seen += static_cast<long>(cells.contacts().size());
-    // Contact forces summed in another order round differently: compare against the largest
-    // single contact force, which sets the size of that rounding.
-    double largest = 1.0;
-    for (const dem::Contact& c : cells.contacts()) largest = std::max(largest, std::abs(c.normal_force));
-    for (std::size_t i = 0; i < s.size(); ++i)
-      worst = std::max(worst, (cells.force()[i] - listed.force()[i]).norm() / largest);
+    worst = std::max(worst, worst_force_difference(cells, listed, s.size()));
   }
   std::printf("Verlet list: %ld builds in %d steps, %zu pairs listed, %ld contacts seen\n",
               listed.verlet_list().builds(), steps, listed.verlet_list().pair_count(),
@@ -101,12 +127,8 @@ TEST(ContactForceField, FusedPassEqualsTheListOfContactsBitwise) {
             : dem::LawParameters{{"stiffness", 1e4}, {"restitution", 0.8}};
     auto model = dem::make_contact_model(normal, normal_parameters, "static_friction",
                                          {{"friction", 0.3}, {"regularization_speed", 1e-3}});
-    dem::ContactForceSettings settings;
-    settings.gravity = Vec3(0.0, -1.0, 0.0);
-    settings.verlet_skin = 0.2;
-    dem::ContactForceField fused(model, domain, settings);
-    settings.fused = false;
-    dem::ContactForceField listed(model, domain, settings);
+    FusedAndListed fields(model, domain);
+    auto& [fused, listed] = fields;
     // A tilted ledge across the box, 3 by 5.
     const auto ledge = dem::FiniteWall::rectangle(Vec3(2.5, 1.25, 2.5), Vec3(3.0, 0.5, 0.0), Vec3::UnitZ(), 3.0, 5.0);
     for (auto* field : {&fused, &listed}) field->finite_walls().push_back(ledge);
@@ -144,9 +166,7 @@ TEST(ContactForceField, FusedPassEqualsTheListOfContactsBitwise) {
 // rebuilt only then. At every evaluation it must find what the cell search finds there.
 TEST(VerletList, PlannedBeforeTheStepFindsEveryContactOfTheStep) {
   const gw::Domain domain = gas_box();
-  auto model = dem::make_contact_model("linear_spring_dashpot",
-                                       {{"stiffness", 1e4}, {"restitution", 0.8}},
-                                       "static_friction", {{"friction", 0.3}});
+  const auto model = frictional_model();
   dem::ContactForceSettings settings;
   settings.gravity = Vec3(0.0, -1.0, 0.0);
   settings.fused = false;
@@ -173,10 +193,7 @@ TEST(VerletList, PlannedBeforeTheStepFindsEveryContactOfTheStep) {
     verlet.step(s, listed, dt, alongside);
     ASSERT_EQ(cells.contacts().size(), listed.contact_count()) << "step " << step;
     contacts_seen += static_cast<long>(cells.contacts().size());
-    double largest = 1.0;
-    for (const dem::Contact& c : cells.contacts()) largest = std::max(largest, std::abs(c.normal_force));
-    for (std::size_t i = 0; i < s.size(); ++i)
-      worst = std::max(worst, (cells.force()[i] - listed.force()[i]).norm() / largest);
+    worst = std::max(worst, worst_force_difference(cells, listed, s.size()));
   }
   EXPECT_LT(worst, 1e-12);  // only the summation order differs
   EXPECT_GT(contacts_seen, 1000);
@@ -237,12 +254,8 @@ TEST(ContactForceField, FusedHistoryPassEqualsTheListOfContactsBitwise) {
                                    {"reference_velocity", 1.0}}
               : dem::LawParameters{{"stiffness", 1e4}, {"restitution", 0.8}},
           tangential, law.parameters);
-      dem::ContactForceSettings settings;
-      settings.gravity = Vec3(0.0, -1.0, 0.0);
-      settings.verlet_skin = 0.2;
-      dem::ContactForceField fused(model, domain, settings);
-      settings.fused = false;
-      dem::ContactForceField listed(model, domain, settings);
+      FusedAndListed fields(model, domain);
+      auto& [fused, listed] = fields;
       gw::ParticleStore s = granular_gas(7, true);
       const double dt = dem::stable_time_step(s, *model.normal, 50);
       // The batched field evaluated at the very state, and stage, of each evaluation of the fused.
