@@ -86,15 +86,7 @@ void run(const std::string& tangential, const dem::LawParameters& parameters, in
     ++builds;
   };
   auto step = [&] {
-    if (skin > 0) {  // as DemSystem::prepare_neighbour_list does for velocity Verlet
-      if (!integrator.has_forces()) {
-        rebuild();
-        integrator.prime(store, field, dt, with_ghosts);
-        dem::SlabDecomposition::strip_ghosts(store);
-      }
-      integrator.displacement_ahead(store, dt, ahead);
-      if (mpi::any(field.list_stale_ahead(store, ahead) != dem::VerletList::kValid)) rebuild();
-    }
+    if (skin > 0) dem::prepare_listed_step(store, field, &integrator, dt, true, rebuild, with_ghosts, ahead);
     integrator.step(store, field, dt, with_ghosts);
     dem::SlabDecomposition::strip_ghosts(store);
     if (skin == 0) migrate();

@@ -611,30 +611,14 @@ void DemSystem::finish_settling_if_done() {
 }
 
 void DemSystem::prepare_neighbour_list(double dt, const BeforeEvaluation& refresh) {
-  bool prime = !runge_kutta_ && !verlet_.has_forces();
-  if (distributed_) prime = mpi::any(prime);
-  if (prime) {  // the forces at t_n, on a list built for the present positions
-    rebuild_neighbour_list();
-    verlet_.prime(store_, *field_, dt, refresh);
-    if (distributed_) SlabDecomposition::strip_ghosts(store_);
-  }
-  for (int attempt = 0; attempt < 2; ++attempt) {
-    if (runge_kutta_) RungeKutta2::displacement_ahead(store_, dt, ahead_);
-    else verlet_.displacement_ahead(store_, dt, ahead_);
-    const long why = field_->list_stale_ahead(store_, ahead_);
-    const bool stale = distributed_ ? mpi::any(why != VerletList::kValid) : why != VerletList::kValid;
-    if (!stale) return;
-    if (attempt == 1) {
-      // Even a fresh list may miss a pair when a particle moves more than skin/2 in one step.
-      if (why >= 0)
-        skin_failure_ = fmt::format(
-            "particle id {} moves {:.3g} m within one step, more than half the neighbour skin "
-            "({:.3g} m): raise dem.neighbour_skin or dem.steps_per_collision",
-            store_.id[static_cast<std::size_t>(why)], ahead_[static_cast<std::size_t>(why)].norm(), skin_);
-      return;
-    }
-    rebuild_neighbour_list();
-  }
+  const long outran = prepare_listed_step(store_, *field_, runge_kutta_ ? nullptr : &verlet_, dt,
+                                          distributed_, [this] { rebuild_neighbour_list(); },
+                                          refresh, ahead_);
+  if (outran >= 0)
+    skin_failure_ = fmt::format(
+        "particle id {} moves {:.3g} m within one step, more than half the neighbour skin "
+        "({:.3g} m): raise dem.neighbour_skin or dem.steps_per_collision",
+        store_.id[static_cast<std::size_t>(outran)], ahead_[static_cast<std::size_t>(outran)].norm(), skin_);
 }
 
 void DemSystem::rebuild_neighbour_list() {

@@ -1,5 +1,8 @@
 #include "particles/dem/Integrators.hpp"
 
+#include "core/Mpi.hpp"
+#include "particles/dem/SlabDecomposition.hpp"
+
 #include <algorithm>
 #include <limits>
 
@@ -123,6 +126,26 @@ void RungeKutta2::step(ParticleStore& store, ContactForceField& field, double dt
         w0_[i] + (0.5 * dt) * (alpha0_[i] + field.torque()[i] / store.inertia[i]);
     domain.wrap(store.position[i]);
   }
+}
+
+long prepare_listed_step(ParticleStore& store, ContactForceField& field, VelocityVerlet* verlet,
+                         double dt, bool collective, const std::function<void()>& rebuild,
+                         const BeforeEvaluation& refresh, std::vector<Vec3>& ahead) {
+  auto everywhere = [collective](bool local) { return collective ? mpi::any(local) : local; };
+  if (verlet && everywhere(!verlet->has_forces())) {
+    rebuild();
+    verlet->prime(store, field, dt, refresh);
+    SlabDecomposition::strip_ghosts(store);  // those the priming evaluation appended
+  }
+  long why = VerletList::kValid;
+  for (int attempt = 0; attempt < 2; ++attempt) {
+    if (verlet) verlet->displacement_ahead(store, dt, ahead);
+    else RungeKutta2::displacement_ahead(store, dt, ahead);
+    why = field.list_stale_ahead(store, ahead);
+    if (!everywhere(why != VerletList::kValid)) return VerletList::kValid;
+    if (attempt == 0) rebuild();
+  }
+  return why >= 0 ? why : VerletList::kValid;
 }
 
 }  // namespace grainwave::particles::dem

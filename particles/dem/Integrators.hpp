@@ -77,4 +77,18 @@ class RungeKutta2 {
   std::vector<Vec3> x0_, v0_, w0_, a0_, alpha0_;
 };
 
+/// Before a step with a caller-managed Verlet list (ContactForceSettings::verlet_managed): the
+/// forces of velocity Verlet at t_n when it has none (`verlet`; null for RK2), on a list
+/// rebuilt first; then a rebuild unless the list serves every evaluation of the coming step
+/// (ContactForceField::list_stale_ahead with the integrator's displacement_ahead). With
+/// `collective`, every decision is taken over all MPI ranks at once, so all rebuild at the
+/// steps the serial run does. `rebuild` does it (when distributed: migration and a full ghost
+/// exchange around ContactForceField::build_list, the store left without ghosts); `refresh`
+/// brings the ghosts up to date before the priming evaluation. Returns VerletList::kValid, or
+/// the slot of a particle that moves more than half the skin within the step even on a fresh
+/// list (the caller reports it: the step might miss a contact). `ahead` is scratch.
+long prepare_listed_step(ParticleStore& store, ContactForceField& field, VelocityVerlet* verlet,
+                         double dt, bool collective, const std::function<void()>& rebuild,
+                         const BeforeEvaluation& refresh, std::vector<Vec3>& ahead);
+
 }  // namespace grainwave::particles::dem

@@ -75,10 +75,9 @@ std::vector<std::array<double, 10>> gather_state(const gw::ParticleStore& s) {
   return rows;
 }
 
-/// With a Verlet list, the protocol of DemSystem::prepare_neighbour_list for one run: before
-/// each step the list is checked against the step's predicted positions (on every rank at
-/// once); a rebuild migrates the particles and exchanges the ghosts first, and between rebuilds
-/// the ghosts are only refreshed before each evaluation.
+/// With a Verlet list, DemSystem's protocol (prepare_listed_step) for one run: a rebuild
+/// migrates the particles and exchanges the ghosts first, and between rebuilds the ghosts are
+/// only refreshed before each evaluation.
 struct ListedRun {
   dem::SlabDecomposition* slabs = nullptr;  ///< null: serial
   std::vector<Vec3> ahead;
@@ -102,14 +101,8 @@ struct ListedRun {
       dem::SlabDecomposition::strip_ghosts(store);
       ++builds;
     };
-    if (verlet && !verlet->has_forces()) {
-      rebuild();
-      verlet->prime(store, field, dt, refresh);
-      dem::SlabDecomposition::strip_ghosts(store);
-    }
-    if (verlet) verlet->displacement_ahead(store, dt, ahead);
-    else dem::RungeKutta2::displacement_ahead(store, dt, ahead);
-    if (mpi::any(field.list_stale_ahead(store, ahead) != dem::VerletList::kValid)) rebuild();
+    ASSERT_EQ(dem::prepare_listed_step(store, field, verlet, dt, true, rebuild, refresh, ahead),
+              dem::VerletList::kValid);
   }
 };
 
