@@ -56,6 +56,12 @@ struct ParticleStore {
   std::vector<std::uint32_t> flags;
 
   std::size_t size() const { return id.size(); }
+  /// Slots before the ghosts (ghost copies, flagged kGhost, trail a store's own particles).
+  std::size_t owned_size() const {
+    std::size_t n = size();
+    while (n > 0 && (flags[n - 1] & kGhost) != 0) --n;
+    return n;
+  }
   bool empty() const { return id.empty(); }
 
   void reserve(std::size_t n);

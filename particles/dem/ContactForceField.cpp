@@ -209,9 +209,12 @@ void ContactForceField::prepare_slots(const ParticleStore& store) {
   const std::size_t n = store.size();
   inverse_mass_.resize(n);
   for (std::size_t i = 0; i < n; ++i) inverse_mass_[i] = store.inverse_mass(i);
-  owned_end_ = n;
-  while (owned_end_ > 0 && (store.flags[owned_end_ - 1] & kGhost) != 0) --owned_end_;
+  owned_end_ = store.owned_size();
   has_ghosts_ = owned_end_ < n;
+}
+
+void ContactForceField::merge_visit_order(const ParticleStore& store) {
+  const std::size_t n = store.size();
   if (has_ghosts_) {
     // Both ranges are in id order (SlabDecomposition keeps them so): merge them by id.
     visit_order_.resize(n);
@@ -233,13 +236,12 @@ double ContactForceField::search_cell_width(const ParticleStore& store, double s
 }
 
 long ContactForceField::list_stale_ahead(const ParticleStore& store, std::span<const Vec3> ahead) const {
-  std::size_t owned = store.size();
-  while (owned > 0 && (store.flags[owned - 1] & kGhost) != 0) --owned;
-  return verlet_.stale_ahead(store, owned, ahead, domain_);
+  return verlet_.stale_ahead(store, store.owned_size(), ahead, domain_);
 }
 
 void ContactForceField::build_list(const ParticleStore& store) {
   prepare_slots(store);
+  merge_visit_order(store);
   const double skin = std::max(settings_.verlet_skin, 0.0);
   verlet_.build(store, domain_, search_cell_width(store, skin), skin, settings_.grid_particles,
                 has_ghosts_ ? &visit_order_ : nullptr, owned_end_);
@@ -262,6 +264,7 @@ void ContactForceField::evaluate(const ParticleStore& store, HistoryStage stage,
       if (verlet_.skin() < 0.0)
         throw std::logic_error("ContactForceField: a managed Verlet list evaluated before build_list");
     } else if (!use_list_) {
+      merge_visit_order(store);
       cells_.build(store, domain_, search_cell_width(store, 0.0), settings_.grid_particles,
                    has_ghosts_ ? &visit_order_ : nullptr);
     } else if (verlet_.stale(store, domain_)) {

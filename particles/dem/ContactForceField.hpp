@@ -145,9 +145,10 @@ class ContactForceField {
   template <class Normal, class Tangential>
   void evaluate_fused(const ParticleStore& store, const Normal& normal, const Tangential& tangential,
                       HistoryStage stage, double dt);
-  /// Per-slot scratch of an evaluation or a build: inverse masses, where the ghosts begin, and
-  /// with ghosts the merged id order of the slots.
+  /// Per-slot scratch of an evaluation or a build: inverse masses and where the ghosts begin.
   void prepare_slots(const ParticleStore& store);
+  /// With ghosts, the owned and ghost slots merged by id (for a cell search or a list build).
+  void merge_visit_order(const ParticleStore& store);
   /// Cell width of a search: settings().cell_width, or the largest diameter; plus `skin`.
   double search_cell_width(const ParticleStore& store, double skin) const;
   /// The fused pass for these laws if they are of known final types; false otherwise.

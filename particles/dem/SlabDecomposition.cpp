@@ -141,9 +141,7 @@ void SlabDecomposition::keep_owned(ParticleStore& store) const {
 }
 
 void SlabDecomposition::strip_ghosts(ParticleStore& store) {
-  std::size_t n = store.size();
-  while (n > 0 && (store.flags[n - 1] & kGhost) != 0) --n;
-  store.truncate(n);
+  store.truncate(store.owned_size());
 }
 
 void SlabDecomposition::exchange_ghosts(ParticleStore& store) {
@@ -206,8 +204,7 @@ void SlabDecomposition::refresh_ghosts(ParticleStore& store) {
     ghosts_.velocity[g] = Vec3(p[3], p[4], p[5]);
     ghosts_.angular_velocity[g] = Vec3(p[6], p[7], p[8]);
   }
-  std::size_t owned = store.size();
-  while (owned > 0 && (store.flags[owned - 1] & kGhost) != 0) --owned;
+  const std::size_t owned = store.owned_size();
   if (owned == store.size()) {
     for (std::size_t g = 0; g < ghosts_.size(); ++g) store.append_from(ghosts_, g);
     return;
