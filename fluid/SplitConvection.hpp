@@ -35,6 +35,7 @@
 #include <array>
 #include <cmath>
 #include <cstddef>
+#include <utility>
 #include <vector>
 
 #include "fluid/IdealGas.hpp"
@@ -290,8 +291,11 @@ inline long add_block_inviscid(const wavelet::ArrayShape<Dim>& shape, int g, int
   // One pass over the axes: out = -sum_a [F_a(i) - F_a(i - s_a)] / h_a, the face fluxes limited
   // for positivity when `limit` (then returns the faces changed).
   auto pass = [&](bool limit) {
-  for (int axis = 0; axis < Dim; ++axis) {
-    const auto au = static_cast<std::size_t>(axis);
+  // The axis is a template parameter: with it known at compile time the two-point flux's
+  // pressure term f[axis + 1] has a fixed slot, so f lives in registers and the pair loops
+  // vectorise (with a run-time axis they stayed scalar).
+  auto along_axis = [&]<int axis>() {
+    constexpr auto au = static_cast<std::size_t>(axis);
     const std::ptrdiff_t s = shape.stride(axis);
     const double* ua = u[au];
     auto along = [&](int from, int to) {  // the interior box, rows from..to-1 along this axis
@@ -342,8 +346,8 @@ inline long add_block_inviscid(const wavelet::ArrayShape<Dim>& shape, int g, int
         for (int x = 0; x < length; ++x) {
           const std::ptrdiff_t i = start + x;
           psi[i] = std::max(second_difference_sensor(p, i, s), second_difference_sensor(rho, i, s));
+          above |= static_cast<int>(psi[i] > settings.threshold);  // an OR over the row: vectorises
         }
-        for (int x = 0; x < length && !above; ++x) above = psi[start + x] > settings.threshold;
       });
       // Below the threshold everywhere in the block the dissipation is exactly zero: skip it.
       if (above) {
@@ -404,7 +408,10 @@ inline long add_block_inviscid(const wavelet::ArrayShape<Dim>& shape, int g, int
         }
       }
     });
-  }
+  };
+  [&]<int... kAxes>(std::integer_sequence<int, kAxes...>) {
+    (along_axis.template operator()<kAxes>(), ...);  // axes in order 0, 1, ...
+  }(std::make_integer_sequence<int, Dim>{});
   };
   pass(false);
   if (settings.limiter_dt <= 0) return 0;

@@ -41,14 +41,31 @@ inline double central_derivative(const double* f, std::ptrdiff_t i, std::ptrdiff
 ///     1/2 [D2(mu f) - f D2(mu) + mu D2(f)] = 1/2 sum_k c_k (mu_k + mu_0)(f_k - f_0),
 /// D2 the 5-point 4th-order second derivative with weights c_k (so it is 4th order, reduces to
 /// mu D2 f for constant mu, and damps the 2h mode); inv_h2 = 1/h^2.
-/// f_of(k) gives f at array point k (a field computed on the fly).
+/// The sums mu_k + mu_0 depend only on mu: NarrowStencil holds them, so that the several fields
+/// diffused with one viscosity share them.
+struct NarrowStencil {
+  double plus1, minus1, plus2, minus2;  ///< mu_{i+-s} + mu_i and mu_{i+-2s} + mu_i
+};
+
+inline NarrowStencil narrow_stencil(const double* mu, std::ptrdiff_t i, std::ptrdiff_t stride) {
+  const double m0 = mu[i];
+  return {mu[i + stride] + m0, mu[i - stride] + m0, mu[i + 2 * stride] + m0, mu[i - 2 * stride] + m0};
+}
+
+/// The narrow operator with the viscosity sums m; f_of(k) gives f at array point k (a field
+/// computed on the fly).
+template <class F>
+inline double narrow_diffusion_with(const NarrowStencil& m, F&& f_of, std::ptrdiff_t i, std::ptrdiff_t stride,
+                                    double inv_h2) {
+  const double f0 = f_of(i);
+  const double near = m.plus1 * (f_of(i + stride) - f0) + m.minus1 * (f_of(i - stride) - f0);
+  const double far = m.plus2 * (f_of(i + 2 * stride) - f0) + m.minus2 * (f_of(i - 2 * stride) - f0);
+  return 0.5 * inv_h2 * ((4.0 / 3.0) * near - (1.0 / 12.0) * far);
+}
+
 template <class F>
 inline double narrow_diffusion_of(const double* mu, F&& f_of, std::ptrdiff_t i, std::ptrdiff_t stride, double inv_h2) {
-  const double m0 = mu[i], f0 = f_of(i);
-  auto pair = [&](std::ptrdiff_t k) {
-    return (mu[i + k] + m0) * (f_of(i + k) - f0) + (mu[i - k] + m0) * (f_of(i - k) - f0);
-  };
-  return 0.5 * inv_h2 * ((4.0 / 3.0) * pair(stride) - (1.0 / 12.0) * pair(2 * stride));
+  return narrow_diffusion_with(narrow_stencil(mu, i, stride), f_of, i, stride, inv_h2);
 }
 
 inline double narrow_diffusion(const double* mu, const double* f, std::ptrdiff_t i, std::ptrdiff_t stride, double inv_h2) {
@@ -175,31 +192,34 @@ inline void add_block_viscous(const wavelet::ArrayShape<Dim>& shape, int g, int 
         }
       });
     }
+    // One pass over the interior adds, per point and in this order, the derivative of the rest
+    // along j and the narrow terms, so the viscosity sums are formed once for the Dim + 2 fields
+    // they diffuse.
     const double* uj = u[ju];
+    std::array<double, Dim> weight{};  // d_j(mu d_j u_i), and for i = j the 1/3 of tau_jj's own-axis part
+    for (std::size_t i = 0; i < static_cast<std::size_t>(Dim); ++i) weight[i] = i == ju ? inv_re * (4.0 / 3.0) : inv_re;
     for_each_row<Dim>(shape, interior_lo, interior_hi, [&](std::ptrdiff_t start, int length, const auto& first) {
       const std::size_t point = interior_point_number<Dim>(first, g, n);
-      if constexpr (Dim > 1)
-        for (std::size_t f = 0; f <= static_cast<std::size_t>(Dim); ++f) {
-          double* o = out + (f + 1) * per_block + point;
-          const double* fl = flux[f];
-#pragma GCC ivdep
-          for (int x = 0; x < length; ++x) o[x] += central_derivative(fl, start + x, stride, inv_h);
-        }
-      for (std::size_t i = 0; i < static_cast<std::size_t>(Dim); ++i) {
-        // d_j(mu d_j u_i), and for i = j the 1/3 of tau_jj's own-axis part as well.
-        double* o = out + (i + 1) * per_block + point;
-        const double* ui = u[i];
-        const double weight = i == ju ? inv_re * (4.0 / 3.0) : inv_re;
-#pragma GCC ivdep
-        for (int x = 0; x < length; ++x) o[x] += weight * narrow_diffusion(mu, ui, start + x, stride, inv_h2);
-      }
+      std::array<double*, Dim + 2> o{};
+      for (std::size_t f = 1; f < static_cast<std::size_t>(Dim + 2); ++f) o[f] = out + f * per_block + point;
       // Energy: d_j(mu d_j (|u|^2/2 + u_j^2/6)), the work of those stresses, and the conduction.
-      double* o = out + (Dim + 1) * per_block + point;
       auto work_potential = [kinetic, uj](std::ptrdiff_t k) { return kinetic[k] + (1.0 / 6.0) * uj[k] * uj[k]; };
+      auto temperature_at = [temperature](std::ptrdiff_t k) { return temperature[k]; };
 #pragma GCC ivdep
-      for (int x = 0; x < length; ++x)
-        o[x] += inv_re * narrow_diffusion_of(mu, work_potential, start + x, stride, inv_h2) +
-                conduction * narrow_diffusion(mu, temperature, start + x, stride, inv_h2);
+      for (int x = 0; x < length; ++x) {
+        const std::ptrdiff_t at = start + x;
+        const NarrowStencil m = narrow_stencil(mu, at, stride);
+        for (std::size_t i = 0; i < static_cast<std::size_t>(Dim); ++i) {
+          double v = o[i + 1][x];
+          if constexpr (Dim > 1) v += central_derivative(flux[i], at, stride, inv_h);
+          const double* ui = u[i];
+          o[i + 1][x] = v + weight[i] * narrow_diffusion_with(m, [ui](std::ptrdiff_t k) { return ui[k]; }, at, stride, inv_h2);
+        }
+        double energy = o[Dim + 1][x];
+        if constexpr (Dim > 1) energy += central_derivative(flux[Dim], at, stride, inv_h);
+        o[Dim + 1][x] = energy + (inv_re * narrow_diffusion_with(m, work_potential, at, stride, inv_h2) +
+                                  conduction * narrow_diffusion_with(m, temperature_at, at, stride, inv_h2));
+      }
     });
   }
 }
