@@ -82,7 +82,7 @@ void fluid_rhs_block(benchmark::State& state) {
   block.kinetic = kinetic.data();
   const gf::ViscousSettings viscous{1.4, 1000.0, 0.72, 110.4 / 300.0};
   for (auto _ : state) {
-    gf::block_primitives<Dim>(qp, volume, 1.4, rho.data(), u_out, e.data(), p.data());
+    gf::primitives<Dim>(qp, volume, 1.4, rho.data(), u_out, e.data(), p.data());
     gf::block_inviscid<Dim>(shape, g, bs, w, qp, h, settings, scratch, out.data());
     if constexpr (kViscous) gf::block_viscous<Dim>(shape, g, bs, h, viscous, block, out.data());
     benchmark::DoNotOptimize(out.data());
