@@ -236,7 +236,7 @@ double ContactForceField::search_cell_width(const ParticleStore& store, double s
 }
 
 long ContactForceField::list_stale_ahead(const ParticleStore& store, std::span<const Vec3> ahead) const {
-  return verlet_.stale_ahead(store, store.owned_size(), ahead, domain_);
+  return verlet_.stale_ahead(store, store.owned_size(), ahead);
 }
 
 void ContactForceField::build_list(const ParticleStore& store) {

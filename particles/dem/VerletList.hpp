@@ -35,9 +35,9 @@ class VerletList {
   /// kValid if the list serves every evaluation of the coming step: the first `owned` slots hold
   /// the particles they held at the build, and each of them, at its position now and at
   /// position + ahead[i], lies within skin/2 of where it was at the build. Otherwise
-  /// kOtherSlots or the first slot that moves too far.
-  long stale_ahead(const ParticleStore& store, std::size_t owned, std::span<const Vec3> ahead,
-                   const Domain& domain) const;
+  /// kOtherSlots or the first slot that moves too far. Displacements are minimum images across
+  /// the periodic axes of the build's domain.
+  long stale_ahead(const ParticleStore& store, std::size_t owned, std::span<const Vec3> ahead) const;
   /// Collects the pairs within r_i + r_j + skin; cells must be at least 2 r_max + skin wide.
   /// `grid_particles` and `visit_order` as in LinkedCells::build (a decomposed run's rank
   /// passes them to list the pairs in the serial order); the first `owned` slots are the

@@ -210,24 +210,43 @@ TEST(VerletList, StaleAheadNamesTheParticleThatWouldOutrunHalfTheSkin) {
           Vec3::Zero(), 0.4, 1.0, 0.1);
   dem::VerletList list;
   std::vector<Vec3> ahead(s.size(), Vec3::Zero());
-  EXPECT_EQ(list.stale_ahead(s, s.size(), ahead, domain), dem::VerletList::kOtherSlots);  // never built
+  EXPECT_EQ(list.stale_ahead(s, s.size(), ahead), dem::VerletList::kOtherSlots);  // never built
   list.build(s, domain, 1.0, 0.2);
-  EXPECT_EQ(list.stale_ahead(s, s.size(), ahead, domain), dem::VerletList::kValid);
+  EXPECT_EQ(list.stale_ahead(s, s.size(), ahead), dem::VerletList::kValid);
   ahead[5] = Vec3(0.0, 0.099, 0.0);  // within skin/2
-  EXPECT_EQ(list.stale_ahead(s, s.size(), ahead, domain), dem::VerletList::kValid);
+  EXPECT_EQ(list.stale_ahead(s, s.size(), ahead), dem::VerletList::kValid);
   ahead[5] = Vec3(0.0, 0.101, 0.0);  // past it during the step
-  EXPECT_EQ(list.stale_ahead(s, s.size(), ahead, domain), 5);
+  EXPECT_EQ(list.stale_ahead(s, s.size(), ahead), 5);
   ahead[5].setZero();
   s.position[3] += Vec3(0.0, 0.0, -0.11);  // past it already
   s.position[2] += Vec3(0.0, 0.0, -0.6);   // through the periodic face, wrapped: 0.6 away
   domain.wrap(s.position[2]);
-  EXPECT_EQ(list.stale_ahead(s, s.size(), ahead, domain), 2);
+  EXPECT_EQ(list.stale_ahead(s, s.size(), ahead), 2);
   s.position[2] = list.reference()[2] + Vec3(0.0, 0.0, 0.05);
-  EXPECT_EQ(list.stale_ahead(s, s.size(), ahead, domain), 3);
+  EXPECT_EQ(list.stale_ahead(s, s.size(), ahead), 3);
   s.position[3] = list.reference()[3];
-  EXPECT_EQ(list.stale_ahead(s, s.size(), ahead, domain), dem::VerletList::kValid);
+  EXPECT_EQ(list.stale_ahead(s, s.size(), ahead), dem::VerletList::kValid);
   s.remove(7);  // other particles in the slots
-  EXPECT_EQ(list.stale_ahead(s, s.size(), ahead, domain), dem::VerletList::kOtherSlots);
+  EXPECT_EQ(list.stale_ahead(s, s.size(), ahead), dem::VerletList::kOtherSlots);
+
+  // Many particles: the first one too far is named, wherever it sits among them (the check runs
+  // over chunks of slots).
+  gw::Domain box;
+  box.hi = Vec3(24.0, 24.0, 6.0);
+  gw::ParticleStore lattice;
+  for (int k = 0; k < 24 * 24 * 3; ++k)
+    lattice.add(k, Vec3(0.5 + k % 24, 0.5 + k / 24 % 24, 0.5 + 2.0 * (k / 576)), Vec3::Zero(), Vec3::Zero(), 0.4,
+                1.0, 0.1);
+  dem::VerletList many;
+  many.build(lattice, box, 1.0, 0.2);
+  std::vector<Vec3> displaced(lattice.size(), Vec3::Zero());
+  EXPECT_EQ(many.stale_ahead(lattice, lattice.size(), displaced), dem::VerletList::kValid);
+  displaced[1300] = Vec3(-0.15, 0.0, 0.0);
+  EXPECT_EQ(many.stale_ahead(lattice, lattice.size(), displaced), 1300);
+  lattice.position[1700] += Vec3(0.0, 0.0, 0.2);
+  lattice.position[700] += Vec3(0.0, 0.0, -0.2);
+  EXPECT_EQ(many.stale_ahead(lattice, lattice.size(), displaced), 700);
+  EXPECT_EQ(many.stale_ahead(lattice, 1000, displaced), dem::VerletList::kOtherSlots);  // not the build's owned count
 }
 
 // The same with the history laws: the fused pass looks each contact's entry up and advances it
