@@ -67,27 +67,33 @@ void VelocityVerlet::step(ParticleStore& store, ContactForceField& field, double
   // swaps the old half of the acceleration for the new one. One fused loop.
   old_force_.resize(n);
   old_torque_.resize(n);
+  inverse_mass_.resize(n);
+  dt_over_inertia_.resize(n);
   const Domain& domain = field.domain();
   for (std::size_t i = 0; i < n; ++i) {
     const Vec3 f = force_[i], t = torque_[i];
     old_force_[i] = f;
     old_torque_[i] = t;
     const double inv_m = store.inverse_mass(i);
+    inverse_mass_[i] = inv_m;
     if (inv_m == 0.0) continue;
     const Vec3 half_kick = (0.5 * dt * inv_m) * f;
     store.position[i] += dt * (store.velocity[i] + half_kick);
     domain.wrap(store.position[i]);
     store.velocity[i] += 2.0 * half_kick;
-    store.angular_velocity[i] += (dt / store.inertia[i]) * t;
+    dt_over_inertia_[i] = dt / store.inertia[i];
+    store.angular_velocity[i] += dt_over_inertia_[i] * t;
   }
   evaluate(HistoryStage::kSingle);
   const auto& f = field.force();
   const auto& t = field.torque();
   for (std::size_t i = 0; i < n; ++i) {
-    const double inv_m = store.inverse_mass(i);
+    // The evaluation keeps the first n slots as they were, so the step's own 1/m and dt/I
+    // still belong to them. (0.5 dt) / I is 0.5 (dt / I) exactly: halving rounds nothing.
+    const double inv_m = inverse_mass_[i];
     if (inv_m == 0.0) continue;
     store.velocity[i] += (0.5 * dt * inv_m) * (f[i] - old_force_[i]);
-    store.angular_velocity[i] += (0.5 * dt / store.inertia[i]) * (t[i] - old_torque_[i]);
+    store.angular_velocity[i] += (0.5 * dt_over_inertia_[i]) * (t[i] - old_torque_[i]);
   }
   force_.assign(f.begin(), f.begin() + static_cast<std::ptrdiff_t>(n));
   torque_.assign(t.begin(), t.begin() + static_cast<std::ptrdiff_t>(n));

@@ -63,6 +63,8 @@ class VelocityVerlet {
   bool have_forces_ = false;
   std::vector<Vec3> force_, torque_;
   std::vector<Vec3> old_force_, old_torque_;
+  // Per slot, from the first loop of step() for its second: 1/m and dt/I (each division once).
+  std::vector<double> inverse_mass_, dt_over_inertia_;
 };
 
 class RungeKutta2 {
