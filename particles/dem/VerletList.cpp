@@ -26,20 +26,10 @@ long VerletList::stale_ahead(const ParticleStore& store, std::size_t owned, std:
   // the caller's prediction.
   const double half = 0.5 * skin_ * (1.0 - 1e-9);
   const double limit2 = half * half;
-  // The minimum image of Domain::separation, written with selects instead of branches, from the
-  // build's periods.
-  auto moved2 = [this](const Vec3& from, const Vec3& to) {
-    double sum = 0;
-    for (int k = 0; k < 3; ++k) {
-      double d = to[k] - from[k];
-      d = d > half_period_[k] ? d - period_[k] : (d < -half_period_[k] ? d + period_[k] : d);
-      sum += d * d;
-    }
-    return sum;
-  };
+  auto moved2 = [this](const Vec3& from, const Vec3& to) { return minimum_image(to - from).squaredNorm(); };
   // Every step asks this of every particle, and almost always the answer is no: chunks are
-  // tested without an exit (the loop has no branch to mispredict), and only a chunk with a
-  // particle beyond the limit is searched again for the first one.
+  // tested without an early exit, and only a chunk with a particle beyond the limit is searched
+  // again for the first one.
   constexpr std::size_t kChunk = 512;
   const Vec3* x = store.position.data();
   for (std::size_t begin = 0; begin < owned; begin += kChunk) {
