@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <filesystem>
 #include <limits>
@@ -191,6 +192,7 @@ class FluidModel : public io::System {
     good_stats_ = stats_;
   }
   void restore_good_state() override {
+    grid_is_current_state_ = false;
     grid_ = std::make_unique<AdaptiveGrid<Dim>>(*good_);
     stats_ = good_stats_;
     layout_changed();
@@ -225,7 +227,8 @@ class FluidModel : public io::System {
   template <class Visit>
   void for_each_wall_point(std::size_t slot, Visit&& visit) const;
   /// Holds the no-slip wall points at rest: the state on the grid, or (rate) the RHS ydot.
-  void constrain_walls(std::span<double> ydot, bool rate);
+  /// Returns whether a value changed.
+  bool constrain_walls(std::span<double> ydot, bool rate);
   bool touches_no_slip_wall(const std::array<double, Dim>& lo, const std::array<double, Dim>& hi) const;
   void layout_changed();
   std::array<double, 2> totals() const;  ///< global integrals of rho and E
@@ -266,6 +269,14 @@ class FluidModel : public io::System {
   BlockScratch<Dim> block_scratch_;  // the inviscid kernel's face fluxes and sensor
   bool positivity_limiter_ = true;
   double limiter_dt_ = 0;     ///< forward-Euler step the positivity limiter guards (the step's dt)
+  /// True while the grid's interior points and all its ghosts (grid and edge ghosts) are what
+  /// unpacking the state and filling ghosts would make them: set at the end of advance(), cleared
+  /// by whatever writes the grid. The first stage of a fixed RK step evaluates f at the state
+  /// advance() packed from the grid, so its unpack and ghost fill can then be skipped (bitwise
+  /// the same: the same interior values give the same ghosts).
+  bool grid_is_current_state_ = false;
+  /// The state vector whose next right-hand side may skip unpack and ghost fill (null: none).
+  const double* rhs_input_on_grid_ = nullptr;
   long limited_faces_ = 0;    ///< faces the positivity limiter changed, in this process
   std::vector<double> rho_, p_, e_;
   std::array<std::vector<double>, Dim> u_;
@@ -684,8 +695,9 @@ void FluidModel<Dim>::for_each_wall_point(std::size_t slot, Visit&& visit) const
 }
 
 template <int Dim>
-void FluidModel<Dim>::constrain_walls(std::span<double> ydot, bool rate) {
-  if (!no_slip_walls_) return;
+bool FluidModel<Dim>::constrain_walls(std::span<double> ydot, bool rate) {
+  if (!no_slip_walls_) return false;
+  bool changed = false;
   const std::size_t per_block = interior_at_.size();
   for (std::size_t s = 0; s < grid_->local_blocks(); ++s)
     for_each_wall_point(s, [&](std::size_t p, BoundaryKind kind) {
@@ -694,12 +706,15 @@ void FluidModel<Dim>::constrain_walls(std::span<double> ydot, bool rate) {
         const auto fu = static_cast<std::size_t>(f);
         q[fu] = rate ? ydot[(s * kFields + fu) * per_block + p] : grid_->block(f, s)[static_cast<std::size_t>(interior_at_[p])];
       }
+      const Conserved<Dim> before = q;
       constrain_wall_point<Dim>(q, kind, edge_gas_);
       for (int f = 0; f < kFields; ++f) {
         const auto fu = static_cast<std::size_t>(f);
+        changed = changed || std::bit_cast<std::uint64_t>(q[fu]) != std::bit_cast<std::uint64_t>(before[fu]);
         (rate ? ydot[(s * kFields + fu) * per_block + p] : grid_->block(f, s)[static_cast<std::size_t>(interior_at_[p])]) = q[fu];
       }
     });
+  return changed;
 }
 
 template <int Dim>
@@ -717,11 +732,13 @@ template <int Dim>
 int FluidModel<Dim>::evaluate_rhs(std::span<const double> y, std::span<double> ydot, RhsTerms terms) {
   const bool inviscid_terms = terms != RhsTerms::kViscousOnly;
   const bool viscous_terms = viscous_ && terms != RhsTerms::kExplicitPart;
-  {
-    ScopedTimer timer(timers_, "rhs: unpack");  // the integrator's vector into the grid
-    unpack(y);
-  }
-  {
+  const bool on_grid = y.data() == rhs_input_on_grid_;
+  rhs_input_on_grid_ = nullptr;  // only ever the first call of a step
+  if (!on_grid) {
+    {
+      ScopedTimer timer(timers_, "rhs: unpack");  // the integrator's vector into the grid
+      unpack(y);
+    }
     ScopedTimer timer(timers_, "rhs: ghosts");
     grid_->fill_ghosts();
     fill_boundary_ghosts();
@@ -911,6 +928,7 @@ void FluidModel<Dim>::update_masks(double t) {
 
 template <int Dim>
 void FluidModel<Dim>::relax_brinkman(double tau) {
+  grid_is_current_state_ = false;
   for (std::size_t s = 0; s < grid_->local_blocks(); ++s)
     for (const auto& m : masked_[s]) {
       if (m.chi == 0) continue;
@@ -1490,8 +1508,14 @@ void FluidModel<Dim>::advance(double t, double dt) {
     ScopedTimer timer(timers_, "integrate");
     auto y = integrator_->state(grid_->local_blocks() * interior_at_.size() * kFields);
     pack(y);
+    // A fixed RK step's first stage is f(t, y) at this very vector (TimeIntegrator.cpp); ARKODE's
+    // schemes call f on vectors of their own.
+    const bool fixed = integrator_->scheme() == TimeScheme::kRk4 || integrator_->scheme() == TimeScheme::kSspRk3;
+    rhs_input_on_grid_ = fixed && grid_is_current_state_ ? y.data() : nullptr;
+    grid_is_current_state_ = false;
     limiter_dt_ = dt;
     flag = integrator_->step(t, dt);
+    rhs_input_on_grid_ = nullptr;
     unpack(y);  // ARKODE wrote the result into the same vector
   }
   if (penalized() && !imex_) {
@@ -1502,6 +1526,7 @@ void FluidModel<Dim>::advance(double t, double dt) {
   stats_.t = t + dt;
   if (flag < 0) throw NumericalFailure(fmt::format("the time integrator failed (flag {})", flag), "", t + dt, 0);
   grid_->fill_ghosts();
+  bool walls_changed = false;
   if (adaptive_ && steps_taken_ % adapt_every_ == 0) {
     // Coarsen what the step left insignificant, then refine around what is significant (the
     // safety zone in scale and space) for the next adapt_every steps, the forced region taken
@@ -1515,9 +1540,12 @@ void FluidModel<Dim>::advance(double t, double dt) {
     const auto changes = grid_->adapt_cycle(threshold_, forced);
     if (changes.refined + changes.coarsened > 0) ++adapt_cycles_changing_;
     layout_changed();
-    constrain_walls({}, false);  // points a refinement placed on a wall were interpolated
+    // Points a refinement placed on a wall were interpolated. A changed wall point may be read
+    // by a neighbour's ghosts, which were filled before: then the next step fills them again.
+    walls_changed = constrain_walls({}, false);
   }
   fill_boundary_ghosts();
+  grid_is_current_state_ = !walls_changed;
   if (penalized()) {
     ScopedTimer timer(timers_, "forces");
     update_masks(t + dt);
@@ -1696,6 +1724,7 @@ void FluidModel<Dim>::write_checkpoint(io::Hdf5Group& group) {
 
 template <int Dim>
 void FluidModel<Dim>::read_checkpoint(const io::Hdf5Group& group) {
+  grid_is_current_state_ = false;
   const auto g = group.open_group("fluid");
   const auto n = g.shape("key_level")[0];
   const auto level = g.read_rows_integer("key_level", 0, n);
