@@ -532,6 +532,12 @@ FluidModel<Dim>::FluidModel(const Scene& scene) {
     force_history_.assign(penalization_.bodies.size(), {});
     cv_momentum_.assign(penalization_.bodies.size(), {});
   }
+  // The right-hand side fills only the ghosts its terms read (adaptation and forces still fill
+  // them all): 2 or 3 layers along each axis, and into corners (edges in 3D) only the viscous
+  // terms' nested derivatives, 2 x 2.
+  grid_->set_stencil_reach(std::max({shock_capturing_ ? kStencilReach : kCentralReach, viscous_ ? kViscousReach : 0,
+                                     penalized() ? kPenaltyReach : 0}),
+                           viscous_ ? kViscousReach : 0);
   auto initial_state = [&](const auto& x, std::span<double> v) {
     auto w = initial_.at(x, 0.0);
     if (penalized()) {  // the gas inside the bodies starts at the body velocity
@@ -740,7 +746,7 @@ int FluidModel<Dim>::evaluate_rhs(std::span<const double> y, std::span<double> y
       unpack(y);
     }
     ScopedTimer timer(timers_, "rhs: ghosts");
-    grid_->fill_ghosts();
+    grid_->fill_stencil_ghosts();
     fill_boundary_ghosts();
   }
   const auto shape = grid_->layout().shape();

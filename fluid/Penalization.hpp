@@ -36,6 +36,9 @@
 
 namespace grainwave::fluid {
 
+/// Ghost layers the penalization terms read: upwind and central differences along one axis.
+inline constexpr int kPenaltyReach = 2;
+
 /// Third-order upwind-biased first derivative of f along a stride for a transport velocity of
 /// sign `positive` (information comes from the low side when positive), times inv_h.
 inline double upwind_derivative(const double* f, std::ptrdiff_t i, std::ptrdiff_t s, bool positive, double inv_h) {

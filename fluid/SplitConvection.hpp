@@ -50,6 +50,10 @@ inline constexpr double kCentral2 = -1.0 / 12.0;
 inline constexpr double kMaxDissipation = 0.5;
 /// Ghost layers the split convection and the dissipation read on each side.
 inline constexpr int kStencilReach = 3;
+/// Ghost layers the split convection reads without the dissipation (shock capturing off), the
+/// positivity limiter's Rusanov faces included; none into corners either way (every difference
+/// is along one axis). Checked by BlockKernels.ReadNoGhostBeyondTheirReach.
+inline constexpr int kCentralReach = 2;
 
 /// Primitive fields of one block, including ghosts (ArrayShape order): rho, u_k, p and the
 /// specific total energy e = E / rho.

@@ -48,13 +48,14 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   // The rows again, sorted for filling: copies (one local term of weight 1, nothing remote:
   // same-level neighbours and injection from finer leaves, most ghosts), merged into runs of
   // consecutive points (a ghost row facing one neighbour reads one of its rows), and weighted
-  // sums.
+  // sums; and the rows with remote terms. In two groups: 0, the ghosts within the stencil reach
+  // (AdaptiveGrid::set_stencil_reach; all of them unless it is set), and 1, the others.
   struct CopyRun {
     std::int64_t dest, src;
     std::int32_t length;
   };
-  std::vector<CopyRun> copy_runs;
-  std::vector<std::int32_t> sum_rows;
+  std::array<std::vector<CopyRun>, 2> copy_runs;
+  std::array<std::vector<std::int32_t>, 2> sum_rows, remote_rows;
   // Messages: point-major buffers [point][field], one contiguous range per peer rank.
   std::vector<int> recv_rank, recv_first, recv_count;
   std::vector<int> send_rank, send_first, send_count;
@@ -66,8 +67,9 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   void clear() {
     auto empty = [](auto&... lists) { (lists.clear(), ...); };
     empty(dest, local_begin, remote_begin, local_src, local_w, remote_src, remote_w, kind, block_row_begin,
-          block_dependency_begin, block_has_remote, block_dependencies, local_src_slot, copy_runs, sum_rows, recv_rank,
-          recv_first, recv_count, send_rank, send_first, send_count, send_src, send_buffer, recv_buffer, requests);
+          block_dependency_begin, block_has_remote, block_dependencies, local_src_slot, recv_rank, recv_first,
+          recv_count, send_rank, send_first, send_count, send_src, send_buffer, recv_buffer, requests);
+    for (std::size_t group = 0; group < 2; ++group) empty(copy_runs[group], sum_rows[group], remote_rows[group]);
   }
 };
 
@@ -109,6 +111,7 @@ AdaptiveGrid<Dim>::AdaptiveGrid(GridConfig<Dim> config, MPI_Comm comm)
   MPI_Comm_size(comm_, &ranks_);
   layout_.interior.fill(bs);
   layout_.ghosts = config_.ghosts;
+  stencil_reach_.fill(config_.ghosts);
   interior_points_ = 1;
   for (int a = 0; a < Dim; ++a) interior_points_ *= static_cast<std::size_t>(bs);
   block_volume_ = layout_.shape().size();
@@ -126,7 +129,7 @@ AdaptiveGrid<Dim>::AdaptiveGrid(const AdaptiveGrid& o)
     : config_(o.config_), comm_(o.comm_), rank_(o.rank_), ranks_(o.ranks_), forest_(o.forest_),
       offsets_(o.offsets_), first_leaf_(o.first_leaf_), local_keys_(o.local_keys_), layout_(o.layout_),
       interior_points_(o.interior_points_), block_volume_(o.block_volume_), data_(o.data_),
-      plan_(std::make_unique<GhostPlan>(*o.plan_)), layout_serial_(o.layout_serial_) {
+      plan_(std::make_unique<GhostPlan>(*o.plan_)), layout_serial_(o.layout_serial_), stencil_reach_(o.stencil_reach_) {
   // The plan is copied, not rebuilt: the solver copies its grid every step to keep the last good
   // state, and rebuilding the plan there cost 7% of a 2D Navier-Stokes run in perf (11% of wall time).
 }
@@ -139,8 +142,9 @@ AdaptiveGrid<Dim>& AdaptiveGrid<Dim>::operator=(const AdaptiveGrid& o) {
   for (std::size_t f = 0; f < data_.size(); ++f) data_[f].assign(o.data_[f].begin(), o.data_[f].end());
   // The solver keeps its last good state by assignment every step; between adaptations only
   // the values differ (copying the plan as well was 1.3% of a 2D Navier-Stokes run).
-  if (plan_ && layout_serial_ == o.layout_serial_) return *this;
+  if (plan_ && layout_serial_ == o.layout_serial_ && stencil_reach_ == o.stencil_reach_) return *this;
   layout_serial_ = o.layout_serial_;
+  stencil_reach_ = o.stencil_reach_;
   config_ = o.config_;
   rank_ = o.rank_;
   ranks_ = o.ranks_;
@@ -609,20 +613,61 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
   plan.send_buffer.assign(plan.send_src.size() * static_cast<std::size_t>(F), 0.0);
   plan.recv_buffer.assign(static_cast<std::size_t>(recv_first[P]) * static_cast<std::size_t>(F), 0.0);
   plan.requests.resize(plan.recv_rank.size() + plan.send_rank.size());
-  for (std::size_t k = 0; k < plan.dest.size(); ++k) {
-    const auto t = static_cast<std::size_t>(plan.local_begin[k]);
-    const bool copy = plan.local_begin[k + 1] - plan.local_begin[k] == 1 && plan.local_w[t] == 1.0 &&
-                      plan.remote_begin[k + 1] == plan.remote_begin[k];
-    if (copy) {
-      const std::int64_t dest = plan.dest[k], src = plan.local_src[t];
-      auto* last = plan.copy_runs.empty() ? nullptr : &plan.copy_runs.back();
-      if (last && dest == last->dest + last->length && src == last->src + last->length) ++last->length;
-      else plan.copy_runs.push_back({dest, src, 1});
-    } else {
-      plan.sum_rows.push_back(static_cast<std::int32_t>(k));
+  group_ghost_rows(plan);
+  spare_plan_ = std::move(previous);
+}
+
+template <int Dim>
+void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan) const {
+  for (std::size_t group = 0; group < 2; ++group) {
+    plan.copy_runs[group].clear();
+    plan.sum_rows[group].clear();
+    plan.remote_rows[group].clear();
+  }
+  // Per array point: its group (0 within the stencil reach, interior points unused).
+  const auto shape = layout_.shape();
+  const int g = layout_.ghosts, bs = config_.block_size;
+  std::vector<std::uint8_t> group_of(block_volume_, 0);
+  for (std::size_t p = 0; p < block_volume_; ++p) {
+    const auto i = shape.coords(static_cast<std::ptrdiff_t>(p));
+    int outside = 0, deepest = 0;
+    for (int a = 0; a < Dim; ++a) {
+      const int local = i[static_cast<std::size_t>(a)] - g;
+      const int depth = local < 0 ? -local : local >= bs ? local - bs + 1 : 0;
+      outside += depth > 0 ? 1 : 0;
+      deepest = std::max(deepest, depth);
+    }
+    group_of[p] = outside == 0 || deepest <= stencil_reach_[static_cast<std::size_t>(outside - 1)] ? 0 : 1;
+  }
+  for (std::size_t s = 0; s + 1 < plan.block_row_begin.size(); ++s) {
+    const auto base = static_cast<std::int64_t>(s * block_volume_);
+    for (auto k = static_cast<std::size_t>(plan.block_row_begin[s]); k < static_cast<std::size_t>(plan.block_row_begin[s + 1]); ++k) {
+      const std::size_t group = group_of[static_cast<std::size_t>(plan.dest[k] - base)];
+      if (plan.remote_begin[k + 1] != plan.remote_begin[k]) plan.remote_rows[group].push_back(static_cast<std::int32_t>(k));
+      const auto t = static_cast<std::size_t>(plan.local_begin[k]);
+      const bool copy = plan.local_begin[k + 1] - plan.local_begin[k] == 1 && plan.local_w[t] == 1.0 &&
+                        plan.remote_begin[k + 1] == plan.remote_begin[k];
+      if (copy) {
+        const std::int64_t dest = plan.dest[k], src = plan.local_src[t];
+        auto& runs = plan.copy_runs[group];
+        auto* last = runs.empty() ? nullptr : &runs.back();
+        if (last && dest == last->dest + last->length && src == last->src + last->length) ++last->length;
+        else runs.push_back({dest, src, 1});
+      } else {
+        plan.sum_rows[group].push_back(static_cast<std::int32_t>(k));
+      }
     }
   }
-  spare_plan_ = std::move(previous);
+}
+
+template <int Dim>
+void AdaptiveGrid<Dim>::set_stencil_reach(int along_axis, int into_corners) {
+  if (along_axis < 0 || along_axis > layout_.ghosts || into_corners < 0 || into_corners > along_axis)
+    throw std::invalid_argument("AdaptiveGrid::set_stencil_reach: need 0 <= corner reach <= axis reach <= ghost layers");
+  const std::array<int, 3> reach{along_axis, into_corners, 0};
+  if (stencil_reach_ == reach) return;
+  stencil_reach_ = reach;
+  if (plan_) group_ghost_rows(*plan_);
 }
 
 namespace {
@@ -634,10 +679,10 @@ namespace {
 /// are independent chains (a lone sum waits on each add). A copy is written 0 + u, what the
 /// weighted sum gives (-0 becomes +0).
 template <int kFields, typename Plan>
-void fill_local_terms(const Plan& plan, std::vector<double>* fields) {
+void fill_local_terms(const Plan& plan, int group, std::vector<double>* fields) {
   std::array<double*, kFields> u{};
   for (std::size_t f = 0; f < kFields; ++f) u[f] = fields[f].data();
-  for (const auto& run : plan.copy_runs)
+  for (const auto& run : plan.copy_runs[static_cast<std::size_t>(group)])
     for (std::size_t f = 0; f < kFields; ++f) {
       double* to = u[f] + run.dest;
       const double* from = u[f] + run.src;
@@ -646,7 +691,7 @@ void fill_local_terms(const Plan& plan, std::vector<double>* fields) {
   const auto* begin = plan.local_begin.data();
   const auto* src = plan.local_src.data();
   const auto* weight = plan.local_w.data();
-  for (const std::int32_t row : plan.sum_rows) {
+  for (const std::int32_t row : plan.sum_rows[static_cast<std::size_t>(group)]) {
     const auto k = static_cast<std::size_t>(row);
     std::array<double, kFields> v{};
     for (auto t = static_cast<std::size_t>(begin[k]); t < static_cast<std::size_t>(begin[k + 1]); ++t)
@@ -658,18 +703,28 @@ void fill_local_terms(const Plan& plan, std::vector<double>* fields) {
 }  // namespace
 
 template <int Dim>
-void AdaptiveGrid<Dim>::fill_local_ghosts(const GhostPlan& plan) {
+void AdaptiveGrid<Dim>::fill_local_ghosts(const GhostPlan& plan, int group) {
   // The fluid's 4 (2D) or 5 (3D) conserved fields together; other counts one by one.
   switch (data_.size()) {
-    case 4: fill_local_terms<4>(plan, data_.data()); break;
-    case 5: fill_local_terms<5>(plan, data_.data()); break;
+    case 4: fill_local_terms<4>(plan, group, data_.data()); break;
+    case 5: fill_local_terms<5>(plan, group, data_.data()); break;
     default:
-      for (auto& field : data_) fill_local_terms<1>(plan, &field);
+      for (auto& field : data_) fill_local_terms<1>(plan, group, &field);
   }
 }
 
 template <int Dim>
 void AdaptiveGrid<Dim>::fill_ghosts() {
+  fill_ghost_groups(2);
+}
+
+template <int Dim>
+void AdaptiveGrid<Dim>::fill_stencil_ghosts() {
+  fill_ghost_groups(1);
+}
+
+template <int Dim>
+void AdaptiveGrid<Dim>::fill_ghost_groups(int groups) {
   GhostPlan& plan = *plan_;
   const int F = fields();
   const auto Fu = static_cast<std::size_t>(F);
@@ -683,18 +738,21 @@ void AdaptiveGrid<Dim>::fill_ghosts() {
   for (std::size_t k = 0; k < plan.send_rank.size(); ++k)
     MPI_Isend(plan.send_buffer.data() + static_cast<std::size_t>(plan.send_first[k]) * Fu, plan.send_count[k] * F,
               MPI_DOUBLE, plan.send_rank[k], 71, comm_, &plan.requests[nreq++]);
-  // Local contributions while the messages travel.
-  fill_local_ghosts(plan);
-  const std::size_t ghosts = plan.dest.size();
+  // Local contributions while the messages travel (every peer's message is whole: the rows of
+  // group 1 share most of their remote points with those of group 0).
+  for (int group = 0; group < groups; ++group) fill_local_ghosts(plan, group);
   MPI_Waitall(static_cast<int>(nreq), plan.requests.data(), MPI_STATUSES_IGNORE);
   if (plan.remote_src.empty()) return;
-  for (std::size_t f = 0; f < Fu; ++f) {
-    double* u = data_[f].data();
-    const double* received = plan.recv_buffer.data() + f;
-    for (std::size_t k = 0; k < ghosts; ++k)
-      for (auto t = plan.remote_begin[k]; t < plan.remote_begin[k + 1]; ++t)
-        u[plan.dest[k]] += plan.remote_w[static_cast<std::size_t>(t)] * received[plan.remote_src[static_cast<std::size_t>(t)]];
-  }
+  for (int group = 0; group < groups; ++group)
+    for (std::size_t f = 0; f < Fu; ++f) {
+      double* u = data_[f].data();
+      const double* received = plan.recv_buffer.data() + f;
+      for (const std::int32_t row : plan.remote_rows[static_cast<std::size_t>(group)]) {
+        const auto k = static_cast<std::size_t>(row);
+        for (auto t = plan.remote_begin[k]; t < plan.remote_begin[k + 1]; ++t)
+          u[plan.dest[k]] += plan.remote_w[static_cast<std::size_t>(t)] * received[plan.remote_src[static_cast<std::size_t>(t)]];
+      }
+    }
 }
 
 template <int Dim>

@@ -162,7 +162,17 @@ class AdaptiveGrid {
   void sample(F&& f);
 
   // --- ghosts ---
+  /// Fills every ghost point of the local blocks (from this rank's blocks and, by non-blocking
+  /// messages, the other ranks').
   void fill_ghosts();
+  /// Fills only the ghost points within the stencil reach (set_stencil_reach); the others keep
+  /// their values. For a right-hand side whose stencils read no further: adaptation, refinement
+  /// and derivative operators need fill_ghosts().
+  void fill_stencil_ghosts();
+  /// The ghost points a caller's stencils read: up to `along_axis` layers beyond a face (outside
+  /// the interior along one axis), up to `across_two_axes` layers along each of two axes (edges
+  /// in 3D, corners in 2D), none outside along three. Default: every ghost point.
+  void set_stencil_reach(int along_axis, int across_two_axes);
   /// Kind of ghost point `array_index` of a local block (interior points are kSameLevel).
   GhostKind ghost_kind(std::size_t slot, std::ptrdiff_t array_index) const;
   /// Number of ghost points of each kind over local blocks (index: GhostKind).
@@ -217,8 +227,13 @@ class AdaptiveGrid {
 
  private:
   struct GhostPlan;
-  /// The part of a ghost fill that reads this rank's blocks.
-  void fill_local_ghosts(const GhostPlan& plan);
+  /// The part of a ghost fill that reads this rank's blocks, for one group of rows.
+  void fill_local_ghosts(const GhostPlan& plan, int group);
+  /// fill_ghosts (groups = 2) or fill_stencil_ghosts (groups = 1).
+  void fill_ghost_groups(int groups);
+  /// Sorts the plan's rows into copy runs, sums and remote rows, per group (0: within the
+  /// stencil reach, 1: the others).
+  void group_ghost_rows(GhostPlan& plan) const;
   void allocate_local();
   /// Builds the ghost plan of the current grid. With the plan of the grid before an adaptation
   /// and that grid's local keys, the rows of blocks whose neighbourhood did not change are
@@ -244,6 +259,8 @@ class AdaptiveGrid {
   /// Drawn afresh (process-wide) whenever the ghost plan is built; copies share it, so an
   /// assignment between grids with the same layout copies only the field data.
   std::uint64_t layout_serial_ = 0;
+  /// Ghost layers read when outside the interior along 1, 2 and 3 axes (set_stencil_reach).
+  std::array<int, 3> stencil_reach_{};
   /// The level and bounded_edges() in one code: what a block's derivative and prediction
   /// stencils depend on.
   int edge_class(const Key& key) const;

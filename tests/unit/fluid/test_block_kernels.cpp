@@ -10,7 +10,10 @@
 
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
+#include <limits>
+#include <algorithm>
 #include <vector>
 
 #include "fluid/BlockKernels.hpp"
@@ -64,9 +67,9 @@ struct Block {
     return out;
   }
 
-  /// The inviscid and viscous right-hand side, by the dispatched kernels or by the templates.
-  /// Returns the faces the limiter changed.
-  long rhs(bool dispatched, std::vector<double>& out) {
+  /// The inviscid and (unless `inviscid_only`) viscous right-hand side, by the dispatched
+  /// kernels or by the templates. Returns the faces the limiter changed.
+  long rhs(bool dispatched, std::vector<double>& out, bool capturing = true, bool inviscid_only = false) {
     std::size_t per_block = 1;
     for (int a = 0; a < Dim; ++a) per_block *= static_cast<std::size_t>(n);
     out.assign(per_block * kFields, 0.0);
@@ -78,7 +81,7 @@ struct Block {
     for (std::size_t a = 0; a < static_cast<std::size_t>(Dim); ++a) w.u[a] = u[a].data();
     gf::InviscidSettings settings;
     settings.gamma = kGamma;
-    settings.capturing = true;
+    settings.capturing = capturing;
     settings.coefficient = 1.2;
     settings.threshold = 1e-3;
     const double h_value = 1.0 / n;
@@ -88,6 +91,7 @@ struct Block {
     gf::BlockScratch<Dim> scratch(shape.size());
     const long limited = dispatched ? gf::block_inviscid<Dim>(shape, g, n, w, conserved(), h, settings, scratch, out.data())
                                     : gf::add_block_inviscid<Dim>(shape, g, n, w, conserved(), h, settings, scratch, out.data());
+    if (inviscid_only) return limited;
     gf::ViscousBlock<Dim> block;
     for (std::size_t i = 0; i < static_cast<std::size_t>(Dim); ++i) {
       block.u[i] = u[i].data();
@@ -137,4 +141,73 @@ TEST(BlockKernels, DispatchedKernelsEqualTheTemplatesBitwise2D) {
 TEST(BlockKernels, DispatchedKernelsEqualTheTemplatesBitwise3D) {
   expect_bitwise_equal_kernels<3>(false);
   expect_bitwise_equal_kernels<3>(true);
+}
+
+namespace {
+
+/// Ghost points of a block array the right-hand side may read: within `axis_reach` layers when
+/// outside the interior along one axis, within `corner_reach` layers along each of two axes, and
+/// never outside along three.
+template <int Dim>
+bool within_reach(const grainwave::wavelet::ArrayShape<Dim>& shape, int g, int n, std::ptrdiff_t at, int axis_reach,
+                  int corner_reach) {
+  const auto c = shape.coords(at);
+  int outside = 0, deepest = 0;
+  for (int a = 0; a < Dim; ++a) {
+    const int i = c[static_cast<std::size_t>(a)] - g;
+    const int depth = i < 0 ? -i : i >= n ? i - n + 1 : 0;
+    outside += depth > 0;
+    deepest = std::max(deepest, depth);
+  }
+  return outside == 0 || (outside == 1 && deepest <= axis_reach) || (outside == 2 && deepest <= corner_reach);
+}
+
+/// The kernels read no ghost beyond their stated reach: with every other ghost point NaN the
+/// right-hand side is finite and bitwise the same. (The solver's stencil ghost fill,
+/// AdaptiveGrid::fill_stencil_ghosts, leaves those points as they were.)
+template <int Dim>
+std::size_t entries_changed_by_poison(int axis_reach, int corner_reach, bool near_vacuum, bool capturing = true,
+                                      bool inviscid_only = false) {
+  Block<Dim> clean(8, near_vacuum), poisoned(8, near_vacuum);
+  for (std::size_t at = 0; at < poisoned.shape.size(); ++at)
+    if (!within_reach<Dim>(poisoned.shape, poisoned.g, poisoned.n, static_cast<std::ptrdiff_t>(at), axis_reach, corner_reach))
+      for (auto& f : poisoned.q) f[at] = std::numeric_limits<double>::quiet_NaN();
+  std::vector<double> a, b;
+  clean.rhs(true, a, capturing, inviscid_only);
+  poisoned.rhs(true, b, capturing, inviscid_only);
+  std::size_t changed = 0;
+  for (std::size_t k = 0; k < a.size(); ++k) changed += std::memcmp(&a[k], &b[k], sizeof(double)) != 0;
+  return changed;
+}
+
+}  // namespace
+
+TEST(BlockKernels, ReadNoGhostBeyondTheirReach) {
+  for (bool near_vacuum : {false, true}) {
+    EXPECT_EQ(entries_changed_by_poison<1>(gf::kStencilReach, 0, near_vacuum), 0u);
+    EXPECT_EQ(entries_changed_by_poison<2>(gf::kStencilReach, gf::kViscousReach, near_vacuum), 0u);
+    EXPECT_EQ(entries_changed_by_poison<3>(gf::kStencilReach, gf::kViscousReach, near_vacuum), 0u);
+  }
+  // The inviscid terms alone read along the axes only (the sensor too); without the sensor's
+  // dissipation kCentralReach layers, also where the positivity limiter redoes faces.
+  for (bool near_vacuum : {false, true}) {
+    for (bool capturing : {false, true}) {
+      EXPECT_EQ(entries_changed_by_poison<2>(gf::kStencilReach, 0, near_vacuum, capturing, true), 0u);
+      EXPECT_EQ(entries_changed_by_poison<3>(gf::kStencilReach, 0, near_vacuum, capturing, true), 0u);
+    }
+    EXPECT_EQ(entries_changed_by_poison<1>(gf::kCentralReach, 0, near_vacuum, false, true), 0u);
+    EXPECT_EQ(entries_changed_by_poison<2>(gf::kCentralReach, 0, near_vacuum, false, true), 0u);
+    EXPECT_EQ(entries_changed_by_poison<3>(gf::kCentralReach, 0, near_vacuum, false, true), 0u);
+  }
+  {
+    Block<2> blast(8, true);
+    std::vector<double> out;
+    EXPECT_GT(blast.rhs(true, out, false, true), 0) << "the limiter must act without the sensor too";
+  }
+  EXPECT_GT(entries_changed_by_poison<2>(gf::kCentralReach - 1, 0, false, false, true), 0u);
+  EXPECT_GT(entries_changed_by_poison<2>(gf::kCentralReach, 0, false, true, true), 0u) << "the sensor reads layer 3";
+  // And the reach is not smaller than stated: poisoning one layer more changes the result.
+  EXPECT_GT(entries_changed_by_poison<2>(gf::kStencilReach - 1, gf::kViscousReach, false), 0u);
+  EXPECT_GT(entries_changed_by_poison<2>(gf::kStencilReach, gf::kViscousReach - 1, false), 0u);
+  EXPECT_GT(entries_changed_by_poison<3>(gf::kStencilReach, gf::kViscousReach - 1, false), 0u);
 }

@@ -7,6 +7,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <limits>
 #include <numbers>
 #include <vector>
 
@@ -276,6 +278,89 @@ TEST(AdaptiveGrid, ReconstructionErrorBoundedByEpsilon2D) {
 TEST(AdaptiveGrid, ReconstructionErrorBoundedByEpsilon3D) {
   check_error_control<3>(unit_box<3>(true, 0, 3), {1e-2, 1e-3, 1e-4}, sphere_3d, 1.0, 1, 0.75, 0.15);
 }
+
+// A right-hand side whose stencils reach 2 layers along an axis and 1 x 1 into corners fills
+// only those ghosts (fill_stencil_ghosts): they equal a full fill's bitwise, and every other
+// ghost point keeps what it held, on a mixed-level grid with ghosts of every kind.
+template <int Dim>
+void stencil_ghosts_are_those_of_a_full_fill() {
+  auto c = unit_box<Dim>(false, 0, 3);
+  c.block_size = 8;
+  gw::AdaptiveGrid<Dim> grid(c);
+  refine_left_half(grid);
+  refine_left_half(grid);
+  auto field = [](const std::array<double, Dim>& x, std::span<double> v) {
+    double r = 0;
+    for (int a = 0; a < Dim; ++a) r += std::sin(3.0 * (a + 1) * x[static_cast<std::size_t>(a)]);
+    v[0] = r;
+    v[1] = std::cos(2 * x[0]);
+  };
+  grid.sample(field);
+  grid.fill_ghosts();
+  std::vector<std::vector<double>> full(2);
+  for (int f = 0; f < 2; ++f)
+    for (std::size_t s = 0; s < grid.local_blocks(); ++s) full[static_cast<std::size_t>(f)].insert(full[static_cast<std::size_t>(f)].end(), grid.block(f, s).begin(), grid.block(f, s).end());
+  constexpr int kAxis = 2, kCorner = 1;
+  grid.set_stencil_reach(kAxis, kCorner);
+  const auto shape = grid.layout().shape();
+  const int g = grid.layout().ghosts, bs = grid.config().block_size;
+  auto within = [&](std::size_t p) {
+    const auto i = shape.coords(static_cast<std::ptrdiff_t>(p));
+    int outside = 0, deepest = 0;
+    for (int a = 0; a < Dim; ++a) {
+      const int local = i[static_cast<std::size_t>(a)] - g;
+      const int depth = local < 0 ? -local : local >= bs ? local - bs + 1 : 0;
+      outside += depth > 0 ? 1 : 0;
+      deepest = std::max(deepest, depth);
+    }
+    return outside == 1 ? deepest <= kAxis : outside == 2 ? deepest <= kCorner : outside == 0;
+  };
+  // Poison every ghost, fill the stencil ghosts, and compare.
+  for (int f = 0; f < 2; ++f)
+    for (std::size_t s = 0; s < grid.local_blocks(); ++s) {
+      auto u = grid.block(f, s);
+      for (std::size_t p = 0; p < u.size(); ++p)
+        if (grid.ghost_kind(s, static_cast<std::ptrdiff_t>(p)) != gw::GhostKind::kOutsideDomain && !within(p)) u[p] = -7.0;
+      for (std::size_t p = 0; p < u.size(); ++p) {
+        const auto i = shape.coords(static_cast<std::ptrdiff_t>(p));
+        bool interior = true;
+        for (int a = 0; a < Dim; ++a) interior = interior && i[static_cast<std::size_t>(a)] >= g && i[static_cast<std::size_t>(a)] < g + bs;
+        if (!interior && within(p)) u[p] = std::numeric_limits<double>::quiet_NaN();
+      }
+    }
+  grid.fill_stencil_ghosts();
+  std::int64_t filled = 0, kept = 0, wrong = 0;
+  for (int f = 0; f < 2; ++f)
+    for (std::size_t s = 0; s < grid.local_blocks(); ++s) {
+      const auto u = grid.block(f, s);
+      for (std::size_t p = 0; p < u.size(); ++p) {
+        if (grid.ghost_kind(s, static_cast<std::ptrdiff_t>(p)) == gw::GhostKind::kOutsideDomain) continue;
+        const double expected = full[static_cast<std::size_t>(f)][s * u.size() + p];
+        if (within(p)) {
+          wrong += std::memcmp(&u[p], &expected, sizeof(double)) != 0 ? 1 : 0;
+          ++filled;
+        } else {
+          wrong += u[p] != -7.0 ? 1 : 0;
+          ++kept;
+        }
+      }
+    }
+  EXPECT_EQ(global_sum(wrong), 0);
+  EXPECT_GT(global_sum(kept), 0);
+  EXPECT_GT(global_sum(filled), global_sum(kept));
+  // A full fill afterwards fills the rest again.
+  grid.fill_ghosts();
+  for (int f = 0; f < 2; ++f)
+    for (std::size_t s = 0; s < grid.local_blocks(); ++s) {
+      const auto u = grid.block(f, s);
+      for (std::size_t p = 0; p < u.size(); ++p) {
+        if (grid.ghost_kind(s, static_cast<std::ptrdiff_t>(p)) == gw::GhostKind::kOutsideDomain) continue;
+        ASSERT_EQ(u[p], full[static_cast<std::size_t>(f)][s * u.size() + p]) << "block " << s << " point " << p;
+      }
+    }
+}
+TEST(AdaptiveGrid, StencilGhostsAreThoseOfAFullFill2D) { stencil_ghosts_are_those_of_a_full_fill<2>(); }
+TEST(AdaptiveGrid, StencilGhostsAreThoseOfAFullFill3D) { stencil_ghosts_are_those_of_a_full_fill<3>(); }
 
 // After an adaptation the ghost rows of blocks whose neighbourhood did not change are copied
 // from the previous plan, the others resolved again: after every cycle of a moving front the
