@@ -42,7 +42,7 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   // remote, and the leaves its rows were resolved from (keys, flattened); per local term, the
   // local block it reads (so a reused row is moved to the blocks' new slots without a division).
   std::vector<std::int32_t> block_row_begin, block_dependency_begin;
-  std::vector<char> block_has_remote;
+  std::vector<char> block_has_remote, block_rebuilt;  // ... and whether its rows were built afresh
   std::vector<BlockKey<Dim>> block_dependencies;
   std::vector<std::int32_t> local_src_slot;
   // The rows again, sorted for filling: copies (one local term of weight 1, nothing remote:
@@ -54,8 +54,10 @@ struct AdaptiveGrid<Dim>::GhostPlan {
     std::int64_t dest, src;
     std::int32_t length;
   };
-  std::array<std::vector<CopyRun>, 2> copy_runs;
-  std::array<std::vector<std::int32_t>, 2> sum_rows, remote_rows;
+  // Lists 0 and 1: the two groups; list 2: the rows of the blocks whose rows were built afresh
+  // by the last rebuild (both groups: the others' ghosts came through the adaptation unchanged).
+  std::array<std::vector<CopyRun>, 3> copy_runs;
+  std::array<std::vector<std::int32_t>, 3> sum_rows, remote_rows;
   // Messages: point-major buffers [point][field], one contiguous range per peer rank.
   std::vector<int> recv_rank, recv_first, recv_count;
   std::vector<int> send_rank, send_first, send_count;
@@ -67,9 +69,9 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   void clear() {
     auto empty = [](auto&... lists) { (lists.clear(), ...); };
     empty(dest, local_begin, remote_begin, local_src, local_w, remote_src, remote_w, kind, block_row_begin,
-          block_dependency_begin, block_has_remote, block_dependencies, local_src_slot, recv_rank, recv_first,
+          block_dependency_begin, block_has_remote, block_rebuilt, block_dependencies, local_src_slot, recv_rank, recv_first,
           recv_count, send_rank, send_first, send_count, send_src, send_buffer, recv_buffer, requests);
-    for (std::size_t group = 0; group < 2; ++group) empty(copy_runs[group], sum_rows[group], remote_rows[group]);
+    for (std::size_t list = 0; list < copy_runs.size(); ++list) empty(copy_runs[list], sum_rows[list], remote_rows[list]);
   }
 };
 
@@ -478,6 +480,7 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
           old.block_dependencies.begin() + old.block_dependency_begin[*o],
           old.block_dependencies.begin() + old.block_dependency_begin[*o + 1]);
       plan.block_has_remote.push_back(0);
+      plan.block_rebuilt.push_back(0);
       plan.block_row_begin.push_back(static_cast<std::int32_t>(plan.dest.size()));
       plan.block_dependency_begin.push_back(static_cast<std::int32_t>(plan.block_dependencies.size()));
       continue;
@@ -554,6 +557,7 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
     found.erase(std::unique(found.begin(), found.end()), found.end());
     plan.block_dependencies.insert(plan.block_dependencies.end(), found.begin(), found.end());
     plan.block_has_remote.push_back(remote_pending.size() > remote_before ? 1 : 0);
+    plan.block_rebuilt.push_back(1);
     plan.block_row_begin.push_back(static_cast<std::int32_t>(plan.dest.size()));
     plan.block_dependency_begin.push_back(static_cast<std::int32_t>(plan.block_dependencies.size()));
   }
@@ -619,10 +623,10 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
 
 template <int Dim>
 void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan) const {
-  for (std::size_t group = 0; group < 2; ++group) {
-    plan.copy_runs[group].clear();
-    plan.sum_rows[group].clear();
-    plan.remote_rows[group].clear();
+  for (std::size_t list = 0; list < plan.copy_runs.size(); ++list) {
+    plan.copy_runs[list].clear();
+    plan.sum_rows[list].clear();
+    plan.remote_rows[list].clear();
   }
   // Per array point: its group (0 within the stencil reach, interior points unused).
   const auto shape = layout_.shape();
@@ -639,23 +643,27 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan) const {
     }
     group_of[p] = outside == 0 || deepest <= stencil_reach_[static_cast<std::size_t>(outside - 1)] ? 0 : 1;
   }
+  auto add = [&](std::size_t list, std::size_t k) {
+    if (plan.remote_begin[k + 1] != plan.remote_begin[k]) plan.remote_rows[list].push_back(static_cast<std::int32_t>(k));
+    const auto t = static_cast<std::size_t>(plan.local_begin[k]);
+    const bool copy = plan.local_begin[k + 1] - plan.local_begin[k] == 1 && plan.local_w[t] == 1.0 &&
+                      plan.remote_begin[k + 1] == plan.remote_begin[k];
+    if (copy) {
+      const std::int64_t dest = plan.dest[k], src = plan.local_src[t];
+      auto& runs = plan.copy_runs[list];
+      auto* last = runs.empty() ? nullptr : &runs.back();
+      if (last && dest == last->dest + last->length && src == last->src + last->length) ++last->length;
+      else runs.push_back({dest, src, 1});
+    } else {
+      plan.sum_rows[list].push_back(static_cast<std::int32_t>(k));
+    }
+  };
   for (std::size_t s = 0; s + 1 < plan.block_row_begin.size(); ++s) {
     const auto base = static_cast<std::int64_t>(s * block_volume_);
+    const bool rebuilt = plan.block_rebuilt[s] != 0;
     for (auto k = static_cast<std::size_t>(plan.block_row_begin[s]); k < static_cast<std::size_t>(plan.block_row_begin[s + 1]); ++k) {
-      const std::size_t group = group_of[static_cast<std::size_t>(plan.dest[k] - base)];
-      if (plan.remote_begin[k + 1] != plan.remote_begin[k]) plan.remote_rows[group].push_back(static_cast<std::int32_t>(k));
-      const auto t = static_cast<std::size_t>(plan.local_begin[k]);
-      const bool copy = plan.local_begin[k + 1] - plan.local_begin[k] == 1 && plan.local_w[t] == 1.0 &&
-                        plan.remote_begin[k + 1] == plan.remote_begin[k];
-      if (copy) {
-        const std::int64_t dest = plan.dest[k], src = plan.local_src[t];
-        auto& runs = plan.copy_runs[group];
-        auto* last = runs.empty() ? nullptr : &runs.back();
-        if (last && dest == last->dest + last->length && src == last->src + last->length) ++last->length;
-        else runs.push_back({dest, src, 1});
-      } else {
-        plan.sum_rows[group].push_back(static_cast<std::int32_t>(k));
-      }
+      add(group_of[static_cast<std::size_t>(plan.dest[k] - base)], k);
+      if (rebuilt) add(kRebuiltRows, k);
     }
   }
 }
@@ -679,10 +687,10 @@ namespace {
 /// are independent chains (a lone sum waits on each add). A copy is written 0 + u, what the
 /// weighted sum gives (-0 becomes +0).
 template <int kFields, typename Plan>
-void fill_local_terms(const Plan& plan, int group, std::vector<double>* fields) {
+void fill_local_terms(const Plan& plan, std::size_t list, std::vector<double>* fields) {
   std::array<double*, kFields> u{};
   for (std::size_t f = 0; f < kFields; ++f) u[f] = fields[f].data();
-  for (const auto& run : plan.copy_runs[static_cast<std::size_t>(group)])
+  for (const auto& run : plan.copy_runs[list])
     for (std::size_t f = 0; f < kFields; ++f) {
       double* to = u[f] + run.dest;
       const double* from = u[f] + run.src;
@@ -691,7 +699,7 @@ void fill_local_terms(const Plan& plan, int group, std::vector<double>* fields) 
   const auto* begin = plan.local_begin.data();
   const auto* src = plan.local_src.data();
   const auto* weight = plan.local_w.data();
-  for (const std::int32_t row : plan.sum_rows[static_cast<std::size_t>(group)]) {
+  for (const std::int32_t row : plan.sum_rows[list]) {
     const auto k = static_cast<std::size_t>(row);
     std::array<double, kFields> v{};
     for (auto t = static_cast<std::size_t>(begin[k]); t < static_cast<std::size_t>(begin[k + 1]); ++t)
@@ -703,28 +711,28 @@ void fill_local_terms(const Plan& plan, int group, std::vector<double>* fields) 
 }  // namespace
 
 template <int Dim>
-void AdaptiveGrid<Dim>::fill_local_ghosts(const GhostPlan& plan, int group) {
+void AdaptiveGrid<Dim>::fill_local_ghosts(const GhostPlan& plan, std::size_t list) {
   // The fluid's 4 (2D) or 5 (3D) conserved fields together; other counts one by one.
   switch (data_.size()) {
-    case 4: fill_local_terms<4>(plan, group, data_.data()); break;
-    case 5: fill_local_terms<5>(plan, group, data_.data()); break;
+    case 4: fill_local_terms<4>(plan, list, data_.data()); break;
+    case 5: fill_local_terms<5>(plan, list, data_.data()); break;
     default:
-      for (auto& field : data_) fill_local_terms<1>(plan, group, &field);
+      for (auto& field : data_) fill_local_terms<1>(plan, list, &field);
   }
 }
 
 template <int Dim>
 void AdaptiveGrid<Dim>::fill_ghosts() {
-  fill_ghost_groups(2);
+  fill_ghost_lists({0, 1});
 }
 
 template <int Dim>
 void AdaptiveGrid<Dim>::fill_stencil_ghosts() {
-  fill_ghost_groups(1);
+  fill_ghost_lists({0});
 }
 
 template <int Dim>
-void AdaptiveGrid<Dim>::fill_ghost_groups(int groups) {
+void AdaptiveGrid<Dim>::fill_ghost_lists(std::initializer_list<std::size_t> lists) {
   GhostPlan& plan = *plan_;
   const int F = fields();
   const auto Fu = static_cast<std::size_t>(F);
@@ -738,16 +746,16 @@ void AdaptiveGrid<Dim>::fill_ghost_groups(int groups) {
   for (std::size_t k = 0; k < plan.send_rank.size(); ++k)
     MPI_Isend(plan.send_buffer.data() + static_cast<std::size_t>(plan.send_first[k]) * Fu, plan.send_count[k] * F,
               MPI_DOUBLE, plan.send_rank[k], 71, comm_, &plan.requests[nreq++]);
-  // Local contributions while the messages travel (every peer's message is whole: the rows of
-  // group 1 share most of their remote points with those of group 0).
-  for (int group = 0; group < groups; ++group) fill_local_ghosts(plan, group);
+  // Local contributions while the messages travel (every peer's message is whole: the lists
+  // share most of their remote points).
+  for (const std::size_t list : lists) fill_local_ghosts(plan, list);
   MPI_Waitall(static_cast<int>(nreq), plan.requests.data(), MPI_STATUSES_IGNORE);
   if (plan.remote_src.empty()) return;
-  for (int group = 0; group < groups; ++group)
+  for (const std::size_t list : lists)
     for (std::size_t f = 0; f < Fu; ++f) {
       double* u = data_[f].data();
       const double* received = plan.recv_buffer.data() + f;
-      for (const std::int32_t row : plan.remote_rows[static_cast<std::size_t>(group)]) {
+      for (const std::int32_t row : plan.remote_rows[list]) {
         const auto k = static_cast<std::size_t>(row);
         for (auto t = plan.remote_begin[k]; t < plan.remote_begin[k + 1]; ++t)
           u[plan.dest[k]] += plan.remote_w[static_cast<std::size_t>(t)] * received[plan.remote_src[static_cast<std::size_t>(t)]];
@@ -1296,7 +1304,9 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_with_tags(std::span<const AdaptTag> tags) {
     }
   }
   build_ghost_plan(std::move(plan_), old_keys);
-  fill_ghosts();
+  // A block whose rows were copied from the old plan is unchanged, as is every leaf its rows
+  // read: its ghosts, copied with its array, already hold what a fill would give them.
+  fill_ghost_lists({kRebuiltRows});
   spare_data_ = std::move(old_data);
   return counts;
 }

@@ -57,6 +57,7 @@
 #include <array>
 #include <cstdint>
 #include <functional>
+#include <initializer_list>
 #include <map>
 #include <memory>
 #include <span>
@@ -227,13 +228,15 @@ class AdaptiveGrid {
 
  private:
   struct GhostPlan;
-  /// The part of a ghost fill that reads this rank's blocks, for one group of rows.
-  void fill_local_ghosts(const GhostPlan& plan, int group);
-  /// fill_ghosts (groups = 2) or fill_stencil_ghosts (groups = 1).
-  void fill_ghost_groups(int groups);
-  /// Sorts the plan's rows into copy runs, sums and remote rows, per group (0: within the
-  /// stencil reach, 1: the others).
+  /// The part of a ghost fill that reads this rank's blocks, for one list of rows.
+  void fill_local_ghosts(const GhostPlan& plan, std::size_t list);
+  /// Fills the rows of the plan's lists: 0 and 1 (fill_ghosts), 0 (fill_stencil_ghosts) or
+  /// kRebuiltRows (after an adaptation).
+  void fill_ghost_lists(std::initializer_list<std::size_t> lists);
+  /// Sorts the plan's rows into copy runs, sums and remote rows, per list: 0, within the
+  /// stencil reach, 1, the others, and kRebuiltRows, the rows of blocks built afresh.
   void group_ghost_rows(GhostPlan& plan) const;
+  static constexpr std::size_t kRebuiltRows = 2;
   void allocate_local();
   /// Builds the ghost plan of the current grid. With the plan of the grid before an adaptation
   /// and that grid's local keys, the rows of blocks whose neighbourhood did not change are

@@ -417,6 +417,51 @@ TEST(AdaptiveGrid, ReusedGhostRowsMatchAFreshPlan2D) {
 }
 TEST(AdaptiveGrid, ReusedGhostRowsMatchAFreshPlan3D) { reused_ghost_rows_match_a_fresh_plan<3>(false); }
 
+// An adaptation fills the ghosts of the blocks whose rows it built afresh, and keeps those of
+// the blocks whose rows it copied (they and every leaf they read are unchanged): after each
+// cycle of a moving front, every ghost equals what a full fill then gives, bitwise.
+template <int Dim>
+void ghosts_after_adaptation_are_filled() {
+  auto c = unit_box<Dim>(false, 0, Dim == 3 ? 2 : 4);
+  c.block_size = 8;
+  gw::AdaptiveGrid<Dim> grid(c);
+  gw::ThresholdConfig th;
+  th.epsilon = 1e-3;
+  th.groups = {0, -1};
+  std::int64_t checked = 0, changes = 0;
+  for (int cycle = 0; cycle < 6; ++cycle) {
+    const double shift = 0.05 * cycle;
+    grid.sample([&](const std::array<double, Dim>& x, std::span<double> v) {
+      double r2 = 0;
+      for (int a = 0; a < Dim; ++a) r2 += std::pow(x[static_cast<std::size_t>(a)] - (a == 0 ? 0.3 + shift : 0.5), 2);
+      v[0] = 0.5 * (1 - std::tanh((std::sqrt(r2) - 0.2) / 0.03));
+      v[1] = std::sin(3 * x[0]) * std::cos(2 * x[Dim - 1]);
+    });
+    grid.fill_ghosts();
+    const auto counts = grid.adapt_cycle(th);
+    changes += counts.refined + counts.coarsened;
+    std::vector<std::vector<double>> after(2);
+    for (int f = 0; f < 2; ++f)
+      for (std::size_t s = 0; s < grid.local_blocks(); ++s)
+        after[static_cast<std::size_t>(f)].insert(after[static_cast<std::size_t>(f)].end(), grid.block(f, s).begin(), grid.block(f, s).end());
+    grid.fill_ghosts();
+    for (int f = 0; f < 2; ++f)
+      for (std::size_t s = 0; s < grid.local_blocks(); ++s) {
+        const auto u = grid.block(f, s);
+        for (std::size_t p = 0; p < u.size(); ++p) {
+          if (grid.ghost_kind(s, static_cast<std::ptrdiff_t>(p)) == gw::GhostKind::kOutsideDomain) continue;
+          const double kept = after[static_cast<std::size_t>(f)][s * u.size() + p];
+          ASSERT_EQ(std::memcmp(&kept, &u[p], sizeof(double)), 0) << "cycle " << cycle << " block " << s << " field " << f << " point " << p;
+          ++checked;
+        }
+      }
+  }
+  EXPECT_GT(global_sum(checked), 0);
+  EXPECT_GT(changes, 0) << "the front must move the grid";
+}
+TEST(AdaptiveGrid, GhostsAfterAdaptationAreFilled2D) { ghosts_after_adaptation_are_filled<2>(); }
+TEST(AdaptiveGrid, GhostsAfterAdaptationAreFilled3D) { ghosts_after_adaptation_are_filled<3>(); }
+
 // A time-stepping solver adapts by cycles: a coarsen pass, then a refine pass, on the same
 // data. Two lone passes on data that does not change coarsen the safety zone the refine pass
 // adds and refine it again, every cycle. A cycle's coarsen pass keeps the families whose parent
