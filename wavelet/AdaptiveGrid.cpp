@@ -39,11 +39,13 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   std::vector<double> remote_w;
   std::vector<std::uint8_t> kind;        // per local array point (GhostKind)
   // Per local block, for reuse after an adaptation: its first row, whether any of its terms is
-  // remote, and the leaves its rows were resolved from (keys, flattened); per local term, the
-  // local block it reads (so a reused row is moved to the blocks' new slots without a division).
+  // remote, its position along the curve, and the leaves its rows were resolved from (as local
+  // slots, -1 for another rank's; flattened); per local term, the local block it reads (so a
+  // reused row is moved to the blocks' new slots without a division).
   std::vector<std::int32_t> block_row_begin, block_dependency_begin;
   std::vector<char> block_has_remote, block_rebuilt;  // ... and whether its rows were built afresh
-  std::vector<BlockKey<Dim>> block_dependencies;
+  std::vector<std::uint64_t> block_curve;
+  std::vector<std::int32_t> block_dependencies;
   std::vector<std::int32_t> local_src_slot;
   // The rows again, sorted for filling: copies (one local term of weight 1, nothing remote:
   // same-level neighbours and injection from finer leaves, most ghosts), merged into runs of
@@ -69,7 +71,8 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   void clear() {
     auto empty = [](auto&... lists) { (lists.clear(), ...); };
     empty(dest, local_begin, remote_begin, local_src, local_w, remote_src, remote_w, kind, block_row_begin,
-          block_dependency_begin, block_has_remote, block_rebuilt, block_dependencies, local_src_slot, recv_rank, recv_first,
+          block_dependency_begin, block_has_remote, block_rebuilt, block_curve, block_dependencies, local_src_slot,
+          recv_rank, recv_first,
           recv_count, send_rank, send_first, send_count, send_src, send_buffer, recv_buffer, requests);
     for (std::size_t list = 0; list < copy_runs.size(); ++list) empty(copy_runs[list], sum_rows[list], remote_rows[list]);
   }
@@ -311,8 +314,7 @@ struct PointResolver {
           last_first[static_cast<std::size_t>(a)] = static_cast<GlobalIndex64>(c[static_cast<std::size_t>(a)]) * config.block_size;
         last_leaf = *found;
         // Consecutive lookups mostly find the same few leaves: skip repeats of the last one.
-        if (found_keys && (found_keys->empty() || found_keys->back() != forest.leaves()[*found]))
-          found_keys->push_back(forest.leaves()[*found]);
+        if (found_leaves && (found_leaves->empty() || found_leaves->back() != *found)) found_leaves->push_back(*found);
         return *found;
       }
     }
@@ -324,7 +326,7 @@ struct PointResolver {
   mutable std::size_t last_leaf = 0;
   /// When set, every leaf found by a lookup (not by the remembered hit) is appended: with the
   /// remembered hit forgotten before each block, these are all the leaves its ghosts read.
-  std::vector<BlockKey<Dim>>* found_keys = nullptr;
+  std::vector<std::size_t>* found_leaves = nullptr;
   void forget() const { last_level = -1; }
 
   /// Appends the terms giving the value at (level, idx): a leaf's point, by injection from a
@@ -394,9 +396,9 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
   plan_ = spare_plan_ ? std::move(spare_plan_) : std::make_unique<GhostPlan>();
   plan_->clear();
   GhostPlan& plan = *plan_;
-  std::vector<Key> found;
+  std::vector<std::size_t> found;
   PointResolver<Dim> resolver{forest_, config_};
-  resolver.found_keys = &found;
+  resolver.found_leaves = &found;
   const auto shape = layout_.shape();
   const int g = layout_.ghosts, bs = config_.block_size;
   plan.kind.assign(local_keys_.size() * block_volume_, static_cast<std::uint8_t>(GhostKind::kSameLevel));
@@ -414,25 +416,35 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
   // same leaves give the same rows). If the block is still here and every one of those leaves
   // is still a leaf owned by this rank, its rows are copied with block slots renumbered;
   // otherwise (or when a row read another rank) they are built again.
-  std::unordered_map<Key, std::size_t, BlockKeyHash<Dim>> previous_slot;
+  // The old and the new local blocks are both sorted by (curve index, key): one merge pairs the
+  // blocks still here with their old slots, without a lookup per block and per leaf read.
   std::vector<std::int64_t> slot_now;  // previous slot -> slot now, -1 if not local any more
+  std::vector<std::int64_t> slot_before(local_keys_.size(), -1);  // slot now -> previous slot, or -1
   if (previous) {
-    previous_slot.reserve(previous_keys.size());
     slot_now.assign(previous_keys.size(), -1);
-    for (std::size_t o = 0; o < previous_keys.size(); ++o) {
-      previous_slot.emplace(previous_keys[o], o);
-      if (const auto leaf = forest_.find(previous_keys[o]); leaf && owner(*leaf) == rank_)
-        slot_now[o] = static_cast<std::int64_t>(*leaf - first_leaf_);
+    std::size_t o = 0, n = 0;
+    while (o < previous_keys.size() && n < local_keys_.size()) {
+      const auto before = std::make_pair(previous->block_curve[o], previous_keys[o]);
+      const auto now = std::make_pair(forest_.leaf_curve_index(first_leaf_ + n), local_keys_[n]);
+      if (before < now) {
+        ++o;
+      } else if (now < before) {
+        ++n;
+      } else {
+        slot_now[o] = static_cast<std::int64_t>(n);
+        slot_before[n] = static_cast<std::int64_t>(o);
+        ++o;
+        ++n;
+      }
     }
   }
-  auto reusable = [&](const Key& key) -> std::optional<std::size_t> {
-    if (!previous) return std::nullopt;
-    const auto it = previous_slot.find(key);
-    if (it == previous_slot.end() || previous->block_has_remote[it->second]) return std::nullopt;
-    const std::size_t o = it->second;
+  auto reusable = [&](std::size_t slot) -> std::optional<std::size_t> {
+    if (!previous || slot_before[slot] < 0) return std::nullopt;
+    const auto o = static_cast<std::size_t>(slot_before[slot]);
+    if (previous->block_has_remote[o]) return std::nullopt;
     for (auto d = previous->block_dependency_begin[o]; d < previous->block_dependency_begin[o + 1]; ++d) {
-      const auto leaf = forest_.find(previous->block_dependencies[static_cast<std::size_t>(d)]);
-      if (!leaf || owner(*leaf) != rank_) return std::nullopt;
+      const std::int32_t read = previous->block_dependencies[static_cast<std::size_t>(d)];
+      if (read < 0 || slot_now[static_cast<std::size_t>(read)] < 0) return std::nullopt;
     }
     return o;
   };
@@ -449,7 +461,8 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
 
   for (std::size_t s = 0; s < local_keys_.size(); ++s) {
     const Key key = local_keys_[s];
-    if (const auto o = reusable(key)) {
+    plan.block_curve.push_back(forest_.leaf_curve_index(first_leaf_ + s));
+    if (const auto o = reusable(s)) {
       // Bulk copies: rows [k0, k1) with terms [t0, t1) of the previous plan.
       const GhostPlan& old = *previous;
       const auto k0 = static_cast<std::size_t>(old.block_row_begin[*o]);
@@ -475,10 +488,9 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
       }
       std::copy_n(old.kind.begin() + static_cast<std::ptrdiff_t>(*o * block_volume_), block_volume_,
                   plan.kind.begin() + static_cast<std::ptrdiff_t>(s * block_volume_));
-      plan.block_dependencies.insert(
-          plan.block_dependencies.end(),
-          old.block_dependencies.begin() + old.block_dependency_begin[*o],
-          old.block_dependencies.begin() + old.block_dependency_begin[*o + 1]);
+      for (auto d = old.block_dependency_begin[*o]; d < old.block_dependency_begin[*o + 1]; ++d)
+        plan.block_dependencies.push_back(
+            static_cast<std::int32_t>(slot_now[static_cast<std::size_t>(old.block_dependencies[static_cast<std::size_t>(d)])]));
       plan.block_has_remote.push_back(0);
       plan.block_rebuilt.push_back(0);
       plan.block_row_begin.push_back(static_cast<std::int32_t>(plan.dest.size()));
@@ -555,7 +567,10 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
     }
     std::sort(found.begin(), found.end());
     found.erase(std::unique(found.begin(), found.end()), found.end());
-    plan.block_dependencies.insert(plan.block_dependencies.end(), found.begin(), found.end());
+    for (const std::size_t leaf : found)
+      plan.block_dependencies.push_back(leaf >= first_leaf_ && leaf < first_leaf_ + local_keys_.size()
+                                            ? static_cast<std::int32_t>(leaf - first_leaf_)
+                                            : -1);
     plan.block_has_remote.push_back(remote_pending.size() > remote_before ? 1 : 0);
     plan.block_rebuilt.push_back(1);
     plan.block_row_begin.push_back(static_cast<std::int32_t>(plan.dest.size()));

@@ -341,8 +341,10 @@ void BlockForest<Dim>::sort_and_index() {
   std::sort(order.begin(), order.end());
   index_.clear();
   index_.reserve(order.size());
+  curve_.resize(order.size());
   for (std::size_t i = 0; i < order.size(); ++i) {
     leaves_[i] = order[i].second;
+    curve_[i] = order[i].first;
     index_.emplace(leaves_[i], i);
   }
 }

@@ -100,6 +100,8 @@ class BlockForest {
 
   /// Position along the configured curve, comparable across levels.
   std::uint64_t curve_index(const Key& key) const;
+  /// curve_index of leaf `leaf`: leaves are sorted by (curve index, key).
+  std::uint64_t leaf_curve_index(std::size_t leaf) const { return curve_[leaf]; }
   /// P+1 offsets into leaves(): rank r owns [offsets[r], offsets[r+1]); equal chunks but for
   /// cuts moved to the nearer end of a family of leaves they would split (at most 2^Dim / 2).
   std::vector<std::size_t> partition(int ranks) const;
@@ -111,6 +113,7 @@ class BlockForest {
   int curve_bits_ = 0;  // bits per axis of anchors at max_level
   std::vector<Key> leaves_;
   std::unordered_map<Key, std::size_t, BlockKeyHash<Dim>> index_;
+  std::vector<std::uint64_t> curve_;  // per leaf, its curve_index
 };
 
 /// Hilbert index of a point with `bits` bits per coordinate (Skilling's transpose method,
