@@ -51,7 +51,11 @@
 // per axis (g ghost layers, by default the least that prediction and derivatives read:
 // max(order - 1, accuracy / 2)).
 // Ghost exchange across ranks uses non-blocking point-to-point messages with a plan built once
-// per adaptation.
+// per adaptation. A caller whose stencils read fewer ghosts than adaptation needs (a solver's
+// right-hand side: along the axes, and into corners only as far as its mixed derivatives) states
+// that reach (set_stencil_reach) and fills only those (fill_stencil_ghosts). After a rebuild the
+// adaptation fills only the blocks whose plan rows it built afresh: every other block, and every
+// leaf it reads, came through unchanged, ghosts included.
 #include <mpi.h>
 
 #include <array>
