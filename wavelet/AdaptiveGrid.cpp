@@ -72,8 +72,8 @@ struct AdaptiveGrid<Dim>::GhostPlan {
     auto empty = [](auto&... lists) { (lists.clear(), ...); };
     empty(dest, local_begin, remote_begin, local_src, local_w, remote_src, remote_w, kind, block_row_begin,
           block_dependency_begin, block_has_remote, block_rebuilt, block_curve, block_dependencies, local_src_slot,
-          recv_rank, recv_first,
-          recv_count, send_rank, send_first, send_count, send_src, send_buffer, recv_buffer, requests);
+          recv_rank, recv_first, recv_count, send_rank, send_first, send_count, send_src, send_buffer, recv_buffer,
+          requests);
     for (std::size_t list = 0; list < copy_runs.size(); ++list) empty(copy_runs[list], sum_rows[list], remote_rows[list]);
   }
 };
@@ -684,10 +684,10 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan) const {
 }
 
 template <int Dim>
-void AdaptiveGrid<Dim>::set_stencil_reach(int along_axis, int into_corners) {
-  if (along_axis < 0 || along_axis > layout_.ghosts || into_corners < 0 || into_corners > along_axis)
+void AdaptiveGrid<Dim>::set_stencil_reach(int along_axis, int across_two_axes) {
+  if (along_axis < 0 || along_axis > layout_.ghosts || across_two_axes < 0 || across_two_axes > along_axis)
     throw std::invalid_argument("AdaptiveGrid::set_stencil_reach: need 0 <= corner reach <= axis reach <= ghost layers");
-  const std::array<int, 3> reach{along_axis, into_corners, 0};
+  const std::array<int, 3> reach{along_axis, across_two_axes, 0};
   if (stencil_reach_ == reach) return;
   stencil_reach_ = reach;
   if (plan_) group_ghost_rows(*plan_);
