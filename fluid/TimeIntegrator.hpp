@@ -54,6 +54,9 @@ class TimeIntegrator {
   std::span<double> state(std::size_t local_size);
   /// Advances the state from t to t + dt (after the caller filled state()); returns 0, or the
   /// right-hand side's or ARKODE's flag (< 0: failure), and leaves the result in state().
+  /// Under kRk4 and kSspRk3 the first call of the right-hand side is f(t, y) with y the very
+  /// span state() returned, unchanged since the caller filled it (FluidSystem relies on this to
+  /// skip unpacking it); ARKODE's schemes call it on vectors of their own.
   int step(double t, double dt);
   /// Number of evaluations of the (explicit) right-hand side so far.
   long rhs_evaluations() const;

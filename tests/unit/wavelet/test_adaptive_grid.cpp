@@ -82,6 +82,31 @@ void refine_left_half(gw::AdaptiveGrid<Dim>& grid) {
   grid.adapt_with_tags(tags);
 }
 
+/// The moving-front set-up of the adaptation tests: blocks of 8 on the unit box, levels 0..4
+/// (0..2 in 3D), field 0 a smoothed disc (sphere) whose centre moves along x by `shift`, field 1
+/// smooth and left out of the thresholding.
+template <int Dim>
+gw::GridConfig<Dim> front_grid(bool periodic) {
+  auto c = unit_box<Dim>(periodic, 0, Dim == 3 ? 2 : 4);
+  c.block_size = 8;
+  return c;
+}
+inline gw::ThresholdConfig front_threshold() {
+  gw::ThresholdConfig th;
+  th.epsilon = 1e-3;
+  th.groups = {0, -1};
+  return th;
+}
+template <int Dim>
+auto moving_front(double shift) {
+  return [shift](const std::array<double, Dim>& x, std::span<double> v) {
+    double r2 = 0;
+    for (int a = 0; a < Dim; ++a) r2 += std::pow(x[static_cast<std::size_t>(a)] - (a == 0 ? 0.3 + shift : 0.5), 2);
+    v[0] = 0.5 * (1 - std::tanh((std::sqrt(r2) - 0.2) / 0.03));
+    v[1] = std::sin(3 * x[0]) * std::cos(2 * x[Dim - 1]);
+  };
+}
+
 /// Every local block array of fields 0 and 1, ghosts included, field by field.
 template <int Dim>
 std::vector<std::vector<double>> snapshot(const gw::AdaptiveGrid<Dim>& grid) {
@@ -383,21 +408,12 @@ TEST(AdaptiveGrid, StencilGhostsAreThoseOfAFullFill3D) { stencil_ghosts_are_thos
 // ranks, blocks that read another rank are always rebuilt, and repartitioning moves blocks.
 template <int Dim>
 void reused_ghost_rows_match_a_fresh_plan(bool periodic) {
-  auto c = unit_box<Dim>(periodic, 0, Dim == 3 ? 2 : 4);
-  c.block_size = 8;
+  const auto c = front_grid<Dim>(periodic);
   gw::AdaptiveGrid<Dim> grid(c);
-  gw::ThresholdConfig th;
-  th.epsilon = 1e-3;
-  th.groups = {0, -1};
+  const auto th = front_threshold();
   std::int64_t checked = 0;
   for (int cycle = 0; cycle < 6; ++cycle) {
-    const double shift = 0.06 * cycle;
-    auto field = [&](const std::array<double, Dim>& x, std::span<double> v) {
-      double r2 = 0;
-      for (int a = 0; a < Dim; ++a) r2 += std::pow(x[static_cast<std::size_t>(a)] - (a == 0 ? 0.3 + shift : 0.5), 2);
-      v[0] = 0.5 * (1 - std::tanh((std::sqrt(r2) - 0.2) / 0.03));
-      v[1] = std::sin(3 * x[0]);
-    };
+    const auto field = moving_front<Dim>(0.06 * cycle);
     grid.sample(field);
     grid.fill_ghosts();
     grid.adapt(th, gw::AdaptPass::kRefine);
@@ -437,21 +453,11 @@ TEST(AdaptiveGrid, ReusedGhostRowsMatchAFreshPlan3D) { reused_ghost_rows_match_a
 // cycle of a moving front, every ghost equals what a full fill then gives, bitwise.
 template <int Dim>
 void ghosts_after_adaptation_are_filled() {
-  auto c = unit_box<Dim>(false, 0, Dim == 3 ? 2 : 4);
-  c.block_size = 8;
-  gw::AdaptiveGrid<Dim> grid(c);
-  gw::ThresholdConfig th;
-  th.epsilon = 1e-3;
-  th.groups = {0, -1};
+  gw::AdaptiveGrid<Dim> grid(front_grid<Dim>(false));
+  const auto th = front_threshold();
   std::int64_t checked = 0, changes = 0;
   for (int cycle = 0; cycle < 6; ++cycle) {
-    const double shift = 0.05 * cycle;
-    grid.sample([&](const std::array<double, Dim>& x, std::span<double> v) {
-      double r2 = 0;
-      for (int a = 0; a < Dim; ++a) r2 += std::pow(x[static_cast<std::size_t>(a)] - (a == 0 ? 0.3 + shift : 0.5), 2);
-      v[0] = 0.5 * (1 - std::tanh((std::sqrt(r2) - 0.2) / 0.03));
-      v[1] = std::sin(3 * x[0]) * std::cos(2 * x[Dim - 1]);
-    });
+    grid.sample(moving_front<Dim>(0.05 * cycle));
     grid.fill_ghosts();
     const auto counts = grid.adapt_cycle(th);
     changes += counts.refined + counts.coarsened;
