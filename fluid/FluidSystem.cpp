@@ -338,8 +338,9 @@ class FluidModel : public io::System {
       return d;
     }
   };
-  /// The wall when the scene is a sound pulse in gas at rest meeting one still penalized half-space
-  /// head-on (the pulse's normal along the wall's): a rigid wall's linear solution is then exact.
+  /// The wall when the scene is a sound pulse in gas at rest running head-on into one still
+  /// penalized half-space (the pulse's normal against the wall's): a rigid wall's linear solution
+  /// is then exact.
   std::optional<MirrorWall> mirror_wall() const;
   /// The pulse plus its image behind the wall (velocity along the wall normal reversed).
   Primitive<Dim> mirrored_pulse(const MirrorWall& wall, const std::array<double, Dim>& x, double t) const;
@@ -1275,7 +1276,9 @@ std::optional<typename FluidModel<Dim>::MirrorWall> FluidModel<Dim>::mirror_wall
       off_dimensions += std::abs(body.normal[a]);
     }
   }
-  if (off_dimensions > 0 || std::abs(std::abs(along) - 1) > 1e-12) return std::nullopt;
+  // The pulse must run into the solid (along its inward normal -n): one running away never
+  // meets the wall, and its mirror image would be a pulse the initial state does not hold.
+  if (off_dimensions > 0 || std::abs(along + 1) > 1e-12) return std::nullopt;
   return wall;
 }
 
