@@ -298,6 +298,10 @@ class FluidModel : public io::System {
   double eta_b_ = 0, eta_c_ = 0, mask_width_ = 0, mask_depth_ = 0, p_far_ = 0, rho_far_ = 1;
   std::array<double, Dim> free_stream_{};
   std::vector<std::vector<MaskedPoint>> masked_;  // per local block
+  /// measure_forces' scratch: per control-volume box met by a block, per axis, the box weight's
+  /// factor and its slope at the block's points along that axis.
+  std::vector<std::array<std::pair<std::vector<double>, std::vector<double>>, Dim>> box_factors_;
+  std::uint64_t masks_steady_layout_ = 0;  ///< the layout serial masked_ holds steady masks for (0: none)
   std::vector<double> temperature_, force_rhs_;
   std::vector<std::vector<ForceSample>> force_history_;  // per body, one sample per step
   std::vector<std::array<double, 3>> cv_momentum_;     // per body: integral of W rho u at cv_time_
@@ -310,6 +314,8 @@ class FluidModel : public io::System {
   /// Whether a block meets a body's control-volume box or its ramp (forced to the finest level).
   bool in_control_volume(const std::array<double, Dim>& lo, const std::array<double, Dim>& hi, double t) const;
   wavelet::ForcedRegion<Dim> forced_region(double t) const;
+  /// Whether the masks at time t are those of any later time on the same layout.
+  bool masks_steady(double t) const;
   void update_masks(double t);
   void relax_brinkman(double tau);
   /// IMEX: the Brinkman relaxation terms as the implicit right-hand side f_I (pointwise, on the
@@ -916,7 +922,23 @@ wavelet::ForcedRegion<Dim> FluidModel<Dim>::forced_region(double t) const {
 }
 
 template <int Dim>
+bool FluidModel<Dim>::masks_steady(double t) const {
+  if (penalization_.start_ramp > 0 && t < penalization_.start_ramp) return false;
+  for (const Body& body : penalization_.bodies)
+    if (body.velocity != std::array<double, 3>{}) return false;
+  return true;
+}
+
+template <int Dim>
 void FluidModel<Dim>::update_masks(double t) {
+  // Bodies that stay where they are, past the soft start, have masks that depend on the grid's
+  // layout alone (u0 = omega x r does not change either): the set computed for this layout is
+  // kept (it is asked for twice per step). Bitwise the same as computing it again.
+  const bool steady = masks_steady(t);
+  if (steady && masks_steady_layout_ != 0 && masks_steady_layout_ == grid_->layout_serial() &&
+      masked_.size() == grid_->local_blocks())
+    return;
+  masks_steady_layout_ = steady ? grid_->layout_serial() : 0;
   const int bs = config_.block_size;
   masked_.assign(grid_->local_blocks(), {});
   for (std::size_t s = 0; s < grid_->local_blocks(); ++s) {
@@ -1118,8 +1140,33 @@ void FluidModel<Dim>::measure_forces(double t) {
       if (overlaps) shells.push_back(k);
     }
     if (masked_[s].empty() && shells.empty()) continue;
+    // The box weight is separable, W = prod_a S(d_a): its factors and their slopes are tabulated
+    // along each axis of the block (bs values each) rather than evaluated at every point. Where
+    // no factor has a slope (the box's plateau), grad W = 0 and the stress is not needed.
+    bool stress_needed = !masked_[s].empty();
+    box_factors_.resize(shells.size());
+    for (std::size_t n = 0; n < shells.size(); ++n) {
+      const Body& body = penalization_.bodies[shells[n]];
+      const double width = ramp_width(body);
+      for (int a = 0; a < Dim; ++a) {
+        const auto aa = static_cast<std::size_t>(a);
+        auto& [ramp, slope] = box_factors_[n][aa];
+        ramp.resize(static_cast<std::size_t>(bs));
+        slope.resize(static_cast<std::size_t>(bs));
+        for (int i = 0; i < bs; ++i) {
+          const auto iu = static_cast<std::size_t>(i);
+          const double r = x0[aa] + static_cast<double>(i) * h[aa] - centre[shells[n]][aa];
+          const double d = body.control_half_width - std::abs(r);
+          ramp[iu] = smoothed_mask(d, width);
+          // d chi / dd of the smoothed step, times dd/dx = -sign(r).
+          const double dchi = std::abs(d) < width ? 0.5 / width * (1 + std::cos(std::numbers::pi * d / width)) : 0.0;
+          slope[iu] = -std::copysign(dchi, r);
+          stress_needed = stress_needed || dchi != 0;
+        }
+      }
+    }
     compute_primitives(s);
-    if (viscous_) {
+    if (viscous_ && stress_needed) {
       std::fill(force_rhs_.begin(), force_rhs_.end(), 0.0);
       add_viscous_terms(s, force_rhs_.data());  // momentum rows: div tau; also fills gradient_, mu_
     }
@@ -1169,21 +1216,19 @@ void FluidModel<Dim>::measure_forces(double t) {
       sum[12] += m.chi * rho_[au] * dv;
       sum[13] += m.chi * rho_[au] * e_[au] * dv;
     }
-    for (const std::size_t k : shells) {
+    for (std::size_t n = 0; n < shells.size(); ++n) {
+      const std::size_t k = shells[n];
       const Body& body = penalization_.bodies[k];
-      const double width = ramp_width(body);
       double* sum = sums.data() + k * kSums;
       for (std::size_t p = 0; p < per_block; ++p) {
-        const auto x = position(p);
         std::array<double, Dim> ramp{}, slope{};
+        std::size_t rest = p;
         for (int a = 0; a < Dim; ++a) {
           const auto aa = static_cast<std::size_t>(a);
-          const double r = x[aa] - centre[k][aa];
-          const double d = body.control_half_width - std::abs(r);
-          ramp[aa] = smoothed_mask(d, width);
-          // d chi / dd of the smoothed step, times dd/dx = -sign(r).
-          const double dchi = std::abs(d) < width ? 0.5 / width * (1 + std::cos(std::numbers::pi * d / width)) : 0.0;
-          slope[aa] = -std::copysign(dchi, r);
+          const std::size_t i = rest % static_cast<std::size_t>(bs);
+          rest /= static_cast<std::size_t>(bs);
+          ramp[aa] = box_factors_[n][aa].first[i];
+          slope[aa] = box_factors_[n][aa].second[i];
         }
         double weight = 1;
         for (double v : ramp) weight *= v;
@@ -1200,6 +1245,7 @@ void FluidModel<Dim>::measure_forces(double t) {
         const auto at = static_cast<std::size_t>(interior_at_[p]);
         for (int i = 0; i < Dim; ++i)
           sum[9 + static_cast<std::size_t>(i)] += weight * rho_[at] * u_[static_cast<std::size_t>(i)][at] * dv;
+        if (!stress_needed) continue;  // grad W = 0 in the whole block: no flux term
         double grad[Dim][Dim] = {};
         if (viscous_)
           for (int i = 0; i < Dim; ++i)

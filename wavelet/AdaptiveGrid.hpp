@@ -152,6 +152,10 @@ class AdaptiveGrid {
 
   // --- local blocks ---
   std::size_t local_blocks() const { return local_keys_.size(); }
+  /// Identifies the layout (blocks, their owners and ghost plan): drawn afresh, process-wide,
+  /// whenever the layout is built, and shared by copies. Equal serials mean the same layout, so
+  /// a user may keep data computed per block (masks, say) while the serial stays.
+  std::uint64_t layout_serial() const { return layout_serial_; }
   std::size_t first_leaf() const { return first_leaf_; }  ///< leaf index of local slot 0
   const Key& key(std::size_t slot) const { return local_keys_[slot]; }
   /// Position of point i of a block (i may step into the ghosts).
