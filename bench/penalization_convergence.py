@@ -18,14 +18,16 @@ order between successive runs, both against the exact answer and, where the othe
 leave a floor, from successive differences (Richardson: the order of d_k = x_k - x_{k+1} for a
 parameter halved or divided by ten each time).
 
-Why eta_c runs down to 1/512: the O(eta_c) is asymptotic. With a smoothed mask the grid points
-at the band's onset have a small chi (0.045 here), where the Brinkman term already holds u = 0
-but the characteristic transport, at speed chi / eta_c, is slow: until eta_c c is well below
-that chi the wall values reach those points late, and the orders come out 0.5-0.8 (stop 12's
-0.8 on eta_c = 2 ... 0.125). Below eta_c ~ 1/64 both probes approach order 1.
+Why eta_c runs down to 1/512, and the gain: the O(eta_c) is asymptotic. With a smoothed mask
+the grid points at the band's onset have a small chi (0.045 here), where the Brinkman term
+already holds u = 0; a characteristic transport weighted by chi runs there at only chi / eta_c,
+and until eta_c c is well below that chi the wall values reach those points late: orders 0.5-0.8
+(stop 12's 0.8 on eta_c = 2 ... 0.125), approaching 1 only below eta_c ~ 1/64. The default weight
+min(1, gain chi), gain 30 (fluid/Penalization.hpp), removes that: the last study repeats the
+pulse with gain 1 (weight chi) for comparison.
 
 usage: bench/penalization_convergence.py GRAINWAVE_EXECUTABLE [OUT_FOLDER] [--quick]
-  --quick: the eta_c studies only down to 1/128 (about a minute instead of five)
+  --quick: the eta_c studies only down to 1/128 (about two minutes instead of nine)
 """
 import json
 import math
@@ -68,7 +70,8 @@ def study(exe, out, case, name, values, fixed, expected, measure, side_name, siz
     print(f"{name:>12} {'value':>12} {'|error|':>10} {'order':>6} {'d_k':>10} {'order(d)':>8} {side_name:>9}")
     rows = []
     for v in values:
-        value, exact, side = measure(run(exe, case, os.path.join(out, f"{case[:-5]}_{name}_{v}"), fixed + [f"{key}={v}"]))
+        folder = os.path.join(out, f"{case[:-5]}_{name}_{v}" + "".join(f"_{f.split('.', 1)[-1]}" for f in fixed))
+        value, exact, side = measure(run(exe, case, folder, fixed + [f"{key}={v}"]))
         rows.append((v, value, abs(value - exact), side))
     orders = []
     for k, (v, x, err, side) in enumerate(rows):
@@ -100,6 +103,9 @@ def main():
                                      shock_position, "p5 err")
     summary["eta_c (pulse)"] = study(exe, out, PULSE, "eta_c", small_eta_c, ["penalization.eta_b=1e-7"], "1",
                                      pulse_shift, "L2_p/A")
+    summary["eta_c (pulse, gain 1)"] = study(exe, out, PULSE, "eta_c", small_eta_c,
+                                             ["penalization.eta_b=1e-7", "penalization.characteristic_gain=1"], "1",
+                                             pulse_shift, "L2_p/A")
     # The grid: eta_b at its zero limit (the relaxation is exact, u = 0 wherever chi > 0) and
     # eta_c inside its asymptotic range, so the mask's own O(h) is what is left.
     small = ["penalization.eta_b=1e-9", "penalization.eta_c=0.015625"]
@@ -111,7 +117,7 @@ def main():
     print("\norders from successive differences, last two of each study (the asymptotic ones; the h studies'\n"
           "errors against the exact answer are in their tables):")
     for name, orders in summary.items():
-        print(f"  {name:>14}: " + ", ".join(f"{o:.2f}" for o in orders[-2:] if o is not None))
+        print(f"  {name:>22}: " + ", ".join(f"{o:.2f}" for o in orders[-2:] if o is not None))
 
 
 if __name__ == "__main__":

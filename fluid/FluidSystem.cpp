@@ -308,6 +308,8 @@ class FluidModel : public io::System {
   double cv_time_ = std::numeric_limits<double>::quiet_NaN();
 
   bool penalized() const { return !penalization_.empty(); }
+  /// Weight of the characteristic terms at a point of mask chi.
+  double characteristic_weight(double chi) const { return std::min(1.0, penalization_.characteristic_gain * chi); }
   /// The largest body mask at x (chi, body, inward normal, body velocity); chi = 0 outside all.
   MaskedPoint mask_at(const std::array<double, Dim>& x, double t) const;
   bool near_interface(const std::array<double, Dim>& lo, const std::array<double, Dim>& hi, double t) const;
@@ -1073,13 +1075,16 @@ void FluidModel<Dim>::add_penalization(std::size_t slot, double* out) {
     const bool adiabatic = penalization_.bodies[static_cast<std::size_t>(m.body)].thermal == WallThermal::kAdiabatic;
     double rate_rho = 0, rate_T = 0;
     std::array<double, Dim> rate_u{}, u{};
+    // The characteristic terms weighted by min(1, gain chi) rather than chi (Penalization.hpp);
+    // the advection by u0 keeps chi (Galilean invariance needs it to match the fluid's (1 - chi)).
+    const double boost = characteristic_weight(m.chi) / m.chi;
     for (int a = 0; a < Dim; ++a) {
       const auto aa = static_cast<std::size_t>(a);
       const std::ptrdiff_t stride = shape.stride(a);
       const double inv_h = 1 / h[aa];
       u[aa] = u_[aa][au];
       // Transport along n / eta_c (wall values carried inward) plus the body's own motion.
-      const double speed = m.inward[aa] / eta_c_ + m.u0[aa];
+      const double speed = boost * m.inward[aa] / eta_c_ + m.u0[aa];
       if (speed != 0) {
         const auto derivative = m.chi < 1 ? upwind_derivative : upwind_derivative_first;
         rate_rho -= speed * derivative(rho_.data(), at, stride, speed > 0, inv_h);
@@ -1591,7 +1596,8 @@ double FluidModel<Dim>::max_stable_dt() const {
       double r = 0;
       for (int a = 0; a < Dim; ++a) {
         const auto aa = static_cast<std::size_t>(a);
-        r += m.chi * (std::abs(m.inward[aa] / eta_c_ + m.u0[aa]) / h[aa] + 1.8 * penalization_.nu_n / (h[aa] * h[aa]));
+        r += std::abs(characteristic_weight(m.chi) * m.inward[aa] / eta_c_ + m.chi * m.u0[aa]) / h[aa] +
+             m.chi * 1.8 * penalization_.nu_n / (h[aa] * h[aa]);
       }
       rate = std::max(rate, r);
     }

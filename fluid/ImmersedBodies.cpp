@@ -145,6 +145,11 @@ void declare_penalization(SceneSchema& schema) {
          "the wall values are carried into the body); 0: 1 (the reference sound speed)")
       .at_least(0);
   s.real("nu_n", 0.0, "numerical viscosity on the velocity inside bodies (0: none)").at_least(0);
+  s.real("characteristic_gain", 30.0,
+         "the characteristic terms (Neumann conditions on rho and T) act with weight min(1, gain chi) instead of "
+         "chi, so that they run at full speed where the Brinkman term already holds the velocity, at the mask's "
+         "onset; 1: weight chi, as in Brown-Dymkoski et al. (see fluid/Penalization.hpp)")
+      .at_least(1);
   s.real("smoothing", 1.5, "half-width of the mask's smoothed step, in finest grid spacings").above(0);
   s.real("mask_depth", -1.0,
          "depth of the mask's mid-point (chi = 1/2) inside the body surface, in finest grid spacings; negative: "
@@ -193,6 +198,7 @@ PenalizationSettings read_penalization(const Scene& scene, int dim) {
     out.eta_b = s.real("eta_b");
     out.eta_c = s.real("eta_c");
     out.nu_n = s.real("nu_n");
+    out.characteristic_gain = s.real("characteristic_gain");
     out.smoothing = s.real("smoothing");
     out.mask_depth = s.real("mask_depth");
     out.average_after = s.real("average_after");

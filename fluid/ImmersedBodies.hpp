@@ -84,6 +84,9 @@ struct PenalizationSettings {
   double eta_b = 0;       ///< Brinkman permeability (time); 0 in the scene: tied to the finest spacing
   double eta_c = 0;       ///< characteristic term: 1/eta_c is the inward speed; 0: as above
   double nu_n = 0;        ///< numerical viscosity on the velocity inside bodies
+  /// The characteristic (Neumann) terms act with weight min(1, gain chi) rather than chi, so they
+  /// run at full speed wherever the Brinkman term holds the velocity (Penalization.hpp); 1: chi.
+  double characteristic_gain = 30;
   double smoothing = 1.5;  ///< mask half-width in finest spacings
   double mask_depth = -1;  ///< depth of chi = 1/2 inside the surface, finest spacings (< 0: smoothing)
   double average_after = 0;  ///< force averages (Cd_mean, St) over t >= this
