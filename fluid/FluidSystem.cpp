@@ -1596,8 +1596,9 @@ double FluidModel<Dim>::max_stable_dt() const {
       double r = 0;
       for (int a = 0; a < Dim; ++a) {
         const auto aa = static_cast<std::size_t>(a);
-        r += std::abs(characteristic_weight(m.chi) * m.inward[aa] / eta_c_ + m.chi * m.u0[aa]) / h[aa] +
-             m.chi * 1.8 * penalization_.nu_n / (h[aa] * h[aa]);
+        // chi |boost n / eta_c + u0| = |chi_c n / eta_c + chi u0|; boost = chi_c / chi is 1 exactly at gain 1.
+        const double boost = characteristic_weight(m.chi) / m.chi;
+        r += m.chi * (std::abs(boost * m.inward[aa] / eta_c_ + m.u0[aa]) / h[aa] + 1.8 * penalization_.nu_n / (h[aa] * h[aa]));
       }
       rate = std::max(rate, r);
     }

@@ -86,7 +86,7 @@ struct PenalizationSettings {
   double nu_n = 0;        ///< numerical viscosity on the velocity inside bodies
   /// The characteristic (Neumann) terms act with weight min(1, gain chi) rather than chi, so they
   /// run at full speed wherever the Brinkman term holds the velocity (Penalization.hpp); 1: chi.
-  double characteristic_gain = 30;
+  double characteristic_gain = 1;
   double smoothing = 1.5;  ///< mask half-width in finest spacings
   double mask_depth = -1;  ///< depth of chi = 1/2 inside the surface, finest spacings (< 0: smoothing)
   double average_after = 0;  ///< force averages (Cd_mean, St) over t >= this
