@@ -34,6 +34,7 @@ import math
 import os
 import subprocess
 import sys
+import tomllib
 
 SOURCE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SHOCK = "shock_reflection_penalized.toml"
@@ -54,9 +55,16 @@ def shock_position(m):
     return m["reflected_shock_distance"], m["reflected_shock_distance_exact"], m["p_reflected_relative_error"]
 
 
-def pulse_shift(m, amplitude=1e-4 / 1.4):
-    """The pulse's shift (exact 0), and its L2 pressure error over the amplitude (1e-4 p, p = 1/gamma)."""
-    return m["reflected_pulse_shift"], 0.0, m["L2_p"] / amplitude
+def pulse_amplitude():
+    """p' = A p of the pulse case, from its scene file."""
+    with open(os.path.join(SOURCE, "cases", PULSE), "rb") as f:
+        fluid = tomllib.load(f)["fluid"]
+    return fluid["pulse_amplitude"] * fluid["left"][2]
+
+
+def pulse_shift(m):
+    """The pulse's shift (exact 0), and its L2 pressure error over the amplitude."""
+    return m["reflected_pulse_shift"], 0.0, m["L2_p"] / pulse_amplitude()
 
 
 def order(previous, current, ratio):

@@ -337,21 +337,14 @@ class FluidModel : public io::System {
   /// Recirculation length behind body 0 over its diameter (steady wakes), if it has one.
   std::optional<double> recirculation_length() const;
   std::string forces_csv() const;
-  /// A still plane wall: the surface point and the unit normal out of the solid, into the gas.
-  struct MirrorWall {
-    std::array<double, Dim> point{}, normal{};
-    double distance_from_wall(const std::array<double, Dim>& x) const {
-      double d = 0;
-      for (std::size_t a = 0; a < static_cast<std::size_t>(Dim); ++a) d += (x[a] - point[a]) * normal[a];
-      return d;
-    }
-  };
-  /// The wall when the scene is a sound pulse in gas at rest running head-on into one still
+  /// The body when the scene is a sound pulse in gas at rest running head-on into one still
   /// penalized half-space (the pulse's normal against the wall's): a rigid wall's linear solution
-  /// is then exact.
-  std::optional<MirrorWall> mirror_wall() const;
+  /// is then exact. Null otherwise.
+  const Body* mirror_wall() const;
+  /// Distance of x from a body's surface on the gas side (minus its signed distance).
+  double gas_side_distance(const Body& body, const std::array<double, Dim>& x, double t) const;
   /// The pulse plus its image behind the wall (velocity along the wall normal reversed).
-  Primitive<Dim> mirrored_pulse(const MirrorWall& wall, const std::array<double, Dim>& x, double t) const;
+  Primitive<Dim> mirrored_pulse(const Body& wall, const std::array<double, Dim>& x, double t) const;
 };
 
 template <int Dim>
@@ -1311,33 +1304,33 @@ struct Coefficients {
 };
 
 template <int Dim>
-std::optional<typename FluidModel<Dim>::MirrorWall> FluidModel<Dim>::mirror_wall() const {
-  if (initial_.kind != InitialKind::kAcousticPulse || penalization_.bodies.size() != 1) return std::nullopt;
+const Body* FluidModel<Dim>::mirror_wall() const {
+  if (initial_.kind != InitialKind::kAcousticPulse || penalization_.bodies.size() != 1) return nullptr;
   const Body& body = penalization_.bodies.front();
   const bool still = body.velocity == std::array<double, 3>{} && body.angular_velocity == std::array<double, 3>{};
-  if (body.shape != BodyShape::kHalfSpace || body.solid_outside || !still || initial_.left.u != 0) return std::nullopt;
-  MirrorWall wall;
+  if (body.shape != BodyShape::kHalfSpace || body.solid_outside || !still || initial_.left.u != 0) return nullptr;
   double along = 0, off_dimensions = 0;
-  for (std::size_t a = 0; a < 3; ++a) {
-    if (a < static_cast<std::size_t>(Dim)) {
-      wall.point[a] = body.centre[a];
-      wall.normal[a] = body.normal[a];
+  for (std::size_t a = 0; a < 3; ++a)
+    if (a < static_cast<std::size_t>(Dim))
       along += body.normal[a] * initial_.normal[a];
-    } else {
+    else
       off_dimensions += std::abs(body.normal[a]);
-    }
-  }
   // The pulse must run into the solid (along its inward normal -n): one running away never
   // meets the wall, and its mirror image would be a pulse the initial state does not hold.
-  if (off_dimensions > 0 || std::abs(along + 1) > 1e-12) return std::nullopt;
-  return wall;
+  return off_dimensions > 0 || std::abs(along + 1) > 1e-12 ? nullptr : &body;
 }
 
 template <int Dim>
-Primitive<Dim> FluidModel<Dim>::mirrored_pulse(const MirrorWall& wall, const std::array<double, Dim>& x,
-                                               double t) const {
+double FluidModel<Dim>::gas_side_distance(const Body& body, const std::array<double, Dim>& x, double t) const {
+  std::array<double, 3> x3{}, inward{};
+  for (std::size_t a = 0; a < static_cast<std::size_t>(Dim); ++a) x3[a] = x[a];
+  return -body.signed_distance(x3, t, inward);
+}
+
+template <int Dim>
+Primitive<Dim> FluidModel<Dim>::mirrored_pulse(const Body& wall, const std::array<double, Dim>& x, double t) const {
   auto w = initial_.at(x, t);
-  const double d = wall.distance_from_wall(x);
+  const double d = gas_side_distance(wall, x, t);
   std::array<double, Dim> image = x;
   for (std::size_t a = 0; a < static_cast<std::size_t>(Dim); ++a) image[a] -= 2 * d * wall.normal[a];
   const auto background = initial_.with_normal_velocity(initial_.left);
@@ -1950,7 +1943,7 @@ void FluidModel<Dim>::report(io::Json& counts, io::Json& metrics, double step_wa
   // penalized wall is measured at the wall below, and a sound pulse meeting a still penalized
   // plane wall head-on has the exact linear solution of a rigid wall: the pulse plus its mirror
   // image behind the wall (compared on the gas side only, beyond the mask band).
-  const auto mirror = mirror_wall();
+  const Body* mirror = mirror_wall();
   const bool compare_exact = initial_.has_exact() && (!penalized() || mirror);
   const bool wall_pressure = initial_.kind == InitialKind::kShock &&
                              (!penalized() || penalization_.bodies.front().shape == BodyShape::kHalfSpace);
@@ -1996,7 +1989,8 @@ void FluidModel<Dim>::report(io::Json& counts, io::Json& metrics, double step_wa
     for (std::size_t s = 0; s < fine.local_blocks(); ++s)
       for (const auto at : interior_at_) {
         const auto x = position_of(s, at);
-        if (mirror && mirror->distance_from_wall(x) < mask_width_) continue;  // solid or band
+        const double from_wall = mirror ? gas_side_distance(*mirror, x, stats_.t) : 0.0;
+        if (mirror && from_wall < mask_width_) continue;  // solid or band
         const auto w = primitive_at(s, static_cast<std::size_t>(at));
         const auto e = exact(x);
         const std::array<double, 3> err = {w.rho - e.rho, velocity(w) - velocity(e), w.p - e.p};
@@ -2007,7 +2001,7 @@ void FluidModel<Dim>::report(io::Json& counts, io::Json& metrics, double step_wa
         }
         count += 1;
         if (mirror) {
-          const double from_wall = mirror->distance_from_wall(x), p_far = initial_.left.p;
+          const double p_far = initial_.left.p;
           pulse_moments[0] += w.p - p_far;
           pulse_moments[1] += (w.p - p_far) * from_wall;
           pulse_moments[2] += e.p - p_far;
