@@ -83,8 +83,9 @@ namespace {
 /// A disc (2D) or sphere (3D) interface on a periodic unit box, adapted to eps = 1e-3 (2D) or
 /// 1e-2 (3D, to keep the grid small).
 template <int Dim>
-gw::AdaptiveGrid<Dim> disc_grid(int max_level) {
+gw::AdaptiveGrid<Dim> disc_grid(int max_level, int block_size = 8) {
   gw::GridConfig<Dim> c;
+  c.block_size = block_size;
   c.lo.fill(0.0);
   c.hi.fill(1.0);
   c.roots.fill(1);
@@ -123,7 +124,7 @@ void BM_BlockCoefficients(benchmark::State& state) {
 // block_significance computes per field when the range bound decides nothing.
 template <int Dim>
 void BM_LargestDetails(benchmark::State& state) {
-  auto grid = disc_grid<Dim>(static_cast<int>(state.range(0)));
+  auto grid = disc_grid<Dim>(static_cast<int>(state.range(0)), static_cast<int>(state.range(1)));
   double sum = 0;
   for (auto _ : state)
     for (std::size_t s = 0; s < grid.local_blocks(); ++s) sum += grid.largest_details(0, s).first;
@@ -200,8 +201,8 @@ void BM_SettledAdaptCycle(benchmark::State& state) {
 
 BENCHMARK(BM_BlockCoefficients<2>)->ArgName("max_level")->Arg(4)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_BlockCoefficients<3>)->ArgName("max_level")->Arg(4)->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_LargestDetails<2>)->ArgName("max_level")->Arg(4)->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_LargestDetails<3>)->ArgName("max_level")->Arg(4)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_LargestDetails<2>)->ArgNames({"max_level", "bs"})->Args({4, 8})->Args({3, 16})->Args({2, 32})->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_LargestDetails<3>)->ArgNames({"max_level", "bs"})->Args({4, 8})->Args({3, 16})->Args({2, 32})->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_GhostFill<2>)->ArgName("max_level")->Arg(4)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_GhostFill<3>)->ArgName("max_level")->Arg(4)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_AdaptCycle<2>)->ArgName("max_level")->Arg(4)->Unit(benchmark::kMillisecond);

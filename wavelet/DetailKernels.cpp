@@ -18,14 +18,17 @@ namespace grainwave::wavelet {
 
 namespace {
 
-template <int Dim, int kOrder>
+template <int Dim, int kOrder, int kBlockSize>
 std::pair<double, double> maxima(const double* u, const DetailRows<Dim>& rows, double* along_x, double* last) {
   // The prediction and the maxima in one pass: along x the prediction is taken at every index with
   // the centred offsets (a contiguous loop), then the evens are overwritten by their copies and
   // the one-sided rows by their own sums; along y (and z) each line of the previous stage is
   // read at the centred line offsets, or at the row's own; the last axis's predictions go
   // straight into the maxima.
-  const auto ubs = static_cast<std::size_t>(rows.block_size), ug = static_cast<std::size_t>(rows.ghosts);
+  // kBlockSize > 0: the block size the caller has, known here so that the compiler unrolls the
+  // short lines and keeps the lanes in registers; 0: any block size.
+  const std::size_t ubs = kBlockSize > 0 ? static_cast<std::size_t>(kBlockSize) : static_cast<std::size_t>(rows.block_size);
+  const auto ug = static_cast<std::size_t>(rows.ghosts);
   const std::size_t uw = ubs + 2 * ug;
   std::array<double, kOrder> w{};
   for (std::size_t m = 0; m < w.size(); ++m) w[m] = rows.centred_weights[m];
@@ -188,19 +191,37 @@ GRAINWAVE_KERNEL_CLONES double interior_largest_magnitude(const double* u, int d
   return largest;
 }
 
+namespace {
+
+/// The kernel for the block size and order at hand: the common block sizes compiled for their
+/// size, the others for any.
+template <int Dim>
+std::pair<double, double> dispatch(const double* u, const DetailRows<Dim>& rows, double* along_x, double* last) {
+  if (rows.order == 4) {
+    if (rows.block_size == 32) return maxima<Dim, 4, 32>(u, rows, along_x, last);
+    if (rows.block_size == 16) return maxima<Dim, 4, 16>(u, rows, along_x, last);
+    return maxima<Dim, 4, 0>(u, rows, along_x, last);
+  }
+  if (rows.block_size == 32) return maxima<Dim, 6, 32>(u, rows, along_x, last);
+  if (rows.block_size == 16) return maxima<Dim, 6, 16>(u, rows, along_x, last);
+  return maxima<Dim, 6, 0>(u, rows, along_x, last);
+}
+
+}  // namespace
+
 GRAINWAVE_KERNEL_CLONES std::pair<double, double> block_detail_maxima(const double* u, const DetailRows<1>& rows,
                                                                       double* along_x, double* last) {
-  return rows.order == 4 ? maxima<1, 4>(u, rows, along_x, last) : maxima<1, 6>(u, rows, along_x, last);
+  return dispatch<1>(u, rows, along_x, last);
 }
 
 GRAINWAVE_KERNEL_CLONES std::pair<double, double> block_detail_maxima(const double* u, const DetailRows<2>& rows,
                                                                       double* along_x, double* last) {
-  return rows.order == 4 ? maxima<2, 4>(u, rows, along_x, last) : maxima<2, 6>(u, rows, along_x, last);
+  return dispatch<2>(u, rows, along_x, last);
 }
 
 GRAINWAVE_KERNEL_CLONES std::pair<double, double> block_detail_maxima(const double* u, const DetailRows<3>& rows,
                                                                       double* along_x, double* last) {
-  return rows.order == 4 ? maxima<3, 4>(u, rows, along_x, last) : maxima<3, 6>(u, rows, along_x, last);
+  return dispatch<3>(u, rows, along_x, last);
 }
 
 }  // namespace grainwave::wavelet
