@@ -166,6 +166,7 @@ AdaptiveGrid<Dim>& AdaptiveGrid<Dim>::operator=(const AdaptiveGrid& o) {
   detail_stencils_.clear();
   slot_detail_stencils_.clear();
   bound_rest_.clear();
+  first_field_.clear();
   parent_sources_.clear();
   return *this;
 }
@@ -180,6 +181,7 @@ void AdaptiveGrid<Dim>::refresh_partition() {
   const auto leaves = forest_.leaves();
   slot_detail_stencils_.clear();  // the slots hold other blocks now
   bound_rest_.clear();
+  first_field_.clear();
   local_keys_.assign(leaves.begin() + static_cast<std::ptrdiff_t>(first_leaf_),
                      leaves.begin() + static_cast<std::ptrdiff_t>(offsets_[static_cast<std::size_t>(rank_) + 1]));
 }
@@ -949,22 +951,6 @@ std::int64_t AdaptiveGrid<Dim>::significant_points(const ThresholdConfig& th) co
 // Adaptation.
 
 template <int Dim>
-const std::vector<Neighbour<Dim>>& AdaptiveGrid<Dim>::leaf_neighbours(std::size_t leaf) const {
-  // Each pass of a cycle asks for the same leaves' neighbours (which leaves are open, the
-  // adjacent zone); the forest only changes with the layout.
-  if (neighbour_serial_ != layout_serial_ || neighbours_.size() != forest_.size()) {
-    neighbours_.assign(forest_.size(), {});
-    neighbours_known_.assign(forest_.size(), 0);
-    neighbour_serial_ = layout_serial_;
-  }
-  if (!neighbours_known_[leaf]) {
-    forest_.neighbours(forest_.leaves()[leaf], neighbours_[leaf]);
-    neighbours_known_[leaf] = 1;
-  }
-  return neighbours_[leaf];
-}
-
-template <int Dim>
 void AdaptiveGrid<Dim>::gather_leaf_flags(std::span<const char> local, std::span<char> all) const {
   std::vector<int> counts(static_cast<std::size_t>(ranks_)), firsts(static_cast<std::size_t>(ranks_));
   for (std::size_t r = 0; r < counts.size(); ++r) {
@@ -985,7 +971,13 @@ std::pair<bool, bool> AdaptiveGrid<Dim>::block_significance(std::size_t slot, co
   if (bound_rest_.size() != local_blocks()) bound_rest_.assign(local_blocks(), 0);
   const bool try_bound = bound_rest_[slot] == 0;
   if (!try_bound) --bound_rest_[slot];
-  for (int f = 0; f < fields() && !(any && near); ++f) {
+  // The fields are tried from the one that settled the block last time: the answer is an OR
+  // over the fields, so the order changes nothing but how many are computed before it is known.
+  if (first_field_.size() != local_blocks()) first_field_.assign(local_blocks(), 0);
+  const int F = fields(), first = first_field_[slot];
+  for (int k = 0; k < F && !(any && near); ++k) {
+    const int f = (first + k) % F;
+    first_field_[slot] = static_cast<std::uint8_t>(f);
     if (!th.groups.empty() && th.groups[static_cast<std::size_t>(f)] < 0) continue;
     const double threshold = th.epsilon * scale[static_cast<std::size_t>(f)];
     const double threshold_any = any_fraction * threshold;
@@ -1110,8 +1102,8 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_pass(const ThresholdConfig& th, AdaptPass p
     for (std::size_t l = first_leaf_; l < first_leaf_ + local_blocks(); ++l) {
       needed[l] = own_tag_open(l);
       if (needed[l] || !th.adjacent_blocks) continue;
-      for (const auto& nb : leaf_neighbours(l))
-        if ((p == AdaptPass::kCoarsen || nb.level_difference <= 0) && own_tag_open(*forest_.find(nb.key))) {
+      for (const auto& nb : forest_.leaf_neighbours(l))
+        if ((p == AdaptPass::kCoarsen || nb.level_difference <= 0) && own_tag_open(nb.leaf)) {
           needed[l] = 1;
           break;
         }
@@ -1151,8 +1143,8 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_pass(const ThresholdConfig& th, AdaptPass p
   if (th.adjacent_blocks)
     for (std::size_t l = 0; l < n; ++l) {
       if (!sig[l]) continue;
-      for (const auto& nb : leaf_neighbours(l))
-        if (pass == AdaptPass::kCoarsen || nb.level_difference <= 0) near_sig[*forest_.find(nb.key)] = 1;
+      for (const auto& nb : forest_.leaf_neighbours(l))
+        if (pass == AdaptPass::kCoarsen || nb.level_difference <= 0) near_sig[nb.leaf] = 1;
     }
   std::vector<AdaptTag> tags(n, AdaptTag::kKeep);
   for (std::size_t l = 0; l < n; ++l) {
@@ -1182,7 +1174,7 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_pass(const ThresholdConfig& th, AdaptPass p
       if (!th.adjacent_blocks) continue;
       forest_.neighbours(parent, around);
       for (const auto& nb : around)
-        if (nb.key.level >= 1 && nb.key.level <= parent.level + 1) kept[*forest_.find(nb.key)] = 1;
+        if (nb.key.level >= 1 && nb.key.level <= parent.level + 1) kept[nb.leaf] = 1;
     }
     for (std::size_t l = 0; l < n; ++l)
       if (kept[l]) tags[l] = AdaptTag::kKeep;  // one member kept: the family stays

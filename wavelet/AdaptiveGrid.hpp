@@ -313,11 +313,6 @@ class AdaptiveGrid {
   /// significance, computed by the coarsen pass, used by the refine pass).
   AdaptCounts adapt_pass(const ThresholdConfig& th, AdaptPass pass, const ForcedRegion<Dim>& forced, bool cycle,
                          std::vector<char>* refine_sig);
-  /// The neighbours of a leaf (index into the forest's leaves), cached for the current layout.
-  const std::vector<Neighbour<Dim>>& leaf_neighbours(std::size_t leaf) const;
-  mutable std::vector<std::vector<Neighbour<Dim>>> neighbours_;
-  mutable std::vector<char> neighbours_known_;
-  mutable std::uint64_t neighbour_serial_ = 0;
   /// One flag per local block -> one per global leaf, on every rank.
   void gather_leaf_flags(std::span<const char> local, std::span<char> all) const;
   /// min u and max u of a field over a block's array, ghosts included (NaNs ignored).
@@ -330,6 +325,7 @@ class AdaptiveGrid {
   mutable std::vector<double> parent_array_;             // parent_significant: the assembled parent
   mutable std::vector<std::pair<int, std::ptrdiff_t>> parent_sources_;  // ... and where its points come from
   mutable std::vector<std::uint8_t> bound_rest_;  // block_significance: calls left without the range bound
+  mutable std::vector<std::uint8_t> first_field_;  // block_significance: the field it tries first
 };
 
 template <int Dim>

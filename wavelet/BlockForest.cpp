@@ -141,15 +141,29 @@ void BlockForest<Dim>::neighbours(const Key& leaf, std::vector<Neighbour<Dim>>& 
   for (const auto& dir : directions<Dim>()) {
     const auto beyond = shifted(leaf, dir);
     if (!beyond) continue;
-    if (is_leaf(*beyond)) {
-      out.push_back({*beyond, 0, dir});
-    } else if (leaf.level > 0 && is_leaf(beyond->parent())) {
-      out.push_back({beyond->parent(), -1, dir});
+    if (const auto same = find(*beyond)) {
+      out.push_back({*beyond, 0, dir, *same});
+    } else if (const auto coarser = leaf.level > 0 ? find(beyond->parent()) : std::nullopt) {
+      out.push_back({beyond->parent(), -1, dir, *coarser});
     } else if (leaf.level < config_.max_level) {
       for (int k = 0; k < Key::kChildren; ++k)
-        if (child_faces_back<Dim>(k, dir) && is_leaf(beyond->child(k))) out.push_back({beyond->child(k), +1, dir});
+        if (child_faces_back<Dim>(k, dir))
+          if (const auto finer = find(beyond->child(k))) out.push_back({beyond->child(k), +1, dir, *finer});
     }
   }
+}
+
+template <int Dim>
+const std::vector<Neighbour<Dim>>& BlockForest<Dim>::leaf_neighbours(std::size_t leaf) const {
+  if (leaf_neighbours_.size() != leaves_.size()) {  // emptied by sort_and_index
+    leaf_neighbours_.assign(leaves_.size(), {});
+    leaf_neighbours_known_.assign(leaves_.size(), 0);
+  }
+  if (!leaf_neighbours_known_[leaf]) {
+    neighbours(leaves_[leaf], leaf_neighbours_[leaf]);
+    leaf_neighbours_known_[leaf] = 1;
+  }
+  return leaf_neighbours_[leaf];
 }
 
 template <int Dim>
@@ -194,14 +208,12 @@ AdaptCounts BlockForest<Dim>::adapted_leaves(std::span<const AdaptTag> tags, std
       work.push_back(i);
     }
   // A refined leaf would sit two levels above a coarser neighbour: refine that one too, and so on.
-  std::vector<Neighbour<Dim>> around;
   while (!work.empty()) {
     const std::size_t i = work.back();
     work.pop_back();
-    neighbours(leaves_[i], around);
-    for (const auto& nb : around) {
+    for (const auto& nb : leaf_neighbours(i)) {
       if (nb.level_difference != -1) continue;
-      const std::size_t j = index_.at(nb.key);
+      const std::size_t j = nb.leaf;
       if (!refine[j]) {
         refine[j] = 1;
         work.push_back(j);
@@ -218,9 +230,8 @@ AdaptCounts BlockForest<Dim>::adapted_leaves(std::span<const AdaptTag> tags, std
     if (!family_asks_to_coarsen(i, tags, &members)) continue;
     bool ok = std::none_of(members.begin(), members.end(), [&](std::size_t j) { return refine[j] != 0; });
     for (int k = 0; k < Key::kChildren && ok; ++k) {
-      neighbours(leaves_[members[static_cast<std::size_t>(k)]], around);
-      for (const auto& nb : around) {
-        const bool finer_after = nb.level_difference == +1 || (nb.level_difference == 0 && refine[index_.at(nb.key)]);
+      for (const auto& nb : leaf_neighbours(members[static_cast<std::size_t>(k)])) {
+        const bool finer_after = nb.level_difference == +1 || (nb.level_difference == 0 && refine[nb.leaf]);
         if (finer_after) {
           ok = false;
           break;
@@ -341,6 +352,8 @@ void BlockForest<Dim>::sort_and_index() {
   std::sort(order.begin(), order.end());
   index_.clear();
   index_.reserve(order.size());
+  leaf_neighbours_.clear();  // the leaves' indices change
+  leaf_neighbours_known_.clear();
   curve_.resize(order.size());
   for (std::size_t i = 0; i < order.size(); ++i) {
     leaves_[i] = order[i].second;

@@ -44,6 +44,7 @@ struct Neighbour {
   BlockKey<Dim> key;
   int level_difference = 0;  ///< neighbour level minus own level: -1 coarser, 0 same, +1 finer
   std::array<int, Dim> direction{};
+  std::size_t leaf = 0;  ///< its index in BlockForest::leaves()
 };
 
 struct AdaptCounts {
@@ -80,6 +81,9 @@ class BlockForest {
     neighbours(leaf, out);
     return out;
   }
+  /// neighbours() of leaves()[leaf], computed once per leaf until the leaves change: every pass
+  /// of an adaptation cycle (tagging, the adjacent zone, balance) asks for the same ones.
+  const std::vector<Neighbour<Dim>>& leaf_neighbours(std::size_t leaf) const;
 
   /// Refine/coarsen by one tag per leaf (in leaves() order), then enforce 2:1 balance.
   AdaptCounts adapt(std::span<const AdaptTag> tags);
@@ -114,6 +118,8 @@ class BlockForest {
   std::vector<Key> leaves_;
   std::unordered_map<Key, std::size_t, BlockKeyHash<Dim>> index_;
   std::vector<std::uint64_t> curve_;  // per leaf, its curve_index
+  mutable std::vector<std::vector<Neighbour<Dim>>> leaf_neighbours_;  // leaf_neighbours' cache
+  mutable std::vector<char> leaf_neighbours_known_;
 };
 
 /// Hilbert index of a point with `bits` bits per coordinate (Skilling's transpose method,
