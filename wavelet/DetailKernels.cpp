@@ -167,8 +167,14 @@ GRAINWAVE_KERNEL_CLONES std::pair<double, double> value_range(const double* u, s
   return {low, high};
 }
 
-GRAINWAVE_KERNEL_CLONES double interior_largest_magnitude(const double* u, int dim, int bs, int g) {
-  const auto ubs = static_cast<std::size_t>(bs), ug = static_cast<std::size_t>(g), uw = ubs + 2 * ug;
+namespace {
+
+/// interior_largest_magnitude with the block size at compile time for the common sizes (as for
+/// the maxima: the short rows unroll), 0 for any.
+template <int kBlockSize>
+double largest_magnitude(const double* u, int dim, int bs, int g) {
+  const auto ubs = kBlockSize > 0 ? static_cast<std::size_t>(kBlockSize) : static_cast<std::size_t>(bs);
+  const auto ug = static_cast<std::size_t>(g), uw = ubs + 2 * ug;
   const std::size_t planes = dim == 3 ? ubs : 1, lines = dim >= 2 ? ubs : 1;
   Lanes top = {0, 0, 0, 0};
   double largest = 0;
@@ -189,6 +195,15 @@ GRAINWAVE_KERNEL_CLONES double interior_largest_magnitude(const double* u, int d
     }
   for (int l = 0; l < 4; ++l) largest = top[l] > largest ? top[l] : largest;
   return largest;
+}
+
+}  // namespace
+
+GRAINWAVE_KERNEL_CLONES double interior_largest_magnitude(const double* u, int dim, int bs, int g) {
+  // The same comparisons in the same order whichever is compiled: the same maximum.
+  if (bs == 16) return largest_magnitude<16>(u, dim, bs, g);
+  if (bs == 32) return largest_magnitude<32>(u, dim, bs, g);
+  return largest_magnitude<0>(u, dim, bs, g);
 }
 
 namespace {
