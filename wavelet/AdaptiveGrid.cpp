@@ -977,7 +977,6 @@ std::pair<bool, bool> AdaptiveGrid<Dim>::block_significance(std::size_t slot, co
   const int F = fields(), first = first_field_[slot];
   for (int k = 0; k < F && !(any && near); ++k) {
     const int f = (first + k) % F;
-    first_field_[slot] = static_cast<std::uint8_t>(f);
     if (!th.groups.empty() && th.groups[static_cast<std::size_t>(f)] < 0) continue;
     const double threshold = th.epsilon * scale[static_cast<std::size_t>(f)];
     const double threshold_any = any_fraction * threshold;
@@ -995,6 +994,7 @@ std::pair<bool, bool> AdaptiveGrid<Dim>::block_significance(std::size_t slot, co
     const auto [largest, largest_near] = detail_maxima(block(f, slot).data(), block_detail_stencils(slot));
     any = any || largest > threshold_any;
     near = near || largest_near > threshold;
+    if (any && near) first_field_[slot] = f;
   }
   if (try_bound && !bound_decided) bound_rest_[slot] = 8;
   return {any, near};

@@ -325,7 +325,7 @@ class AdaptiveGrid {
   mutable std::vector<double> parent_array_;             // parent_significant: the assembled parent
   mutable std::vector<std::pair<int, std::ptrdiff_t>> parent_sources_;  // ... and where its points come from
   mutable std::vector<std::uint8_t> bound_rest_;  // block_significance: calls left without the range bound
-  mutable std::vector<std::uint8_t> first_field_;  // block_significance: the field it tries first
+  mutable std::vector<int> first_field_;  // block_significance: the field it tries first
 };
 
 template <int Dim>

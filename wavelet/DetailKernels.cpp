@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstring>
+#include <type_traits>
 
 // Each kernel is cloned for AVX2 and the baseline; `flatten` inlines the template into each
 // clone, so each is compiled for its instruction set as a whole (fluid/BlockKernels.cpp does
@@ -17,6 +18,15 @@
 namespace grainwave::wavelet {
 
 namespace {
+
+/// kernel(std::integral_constant<int, B>{}) with B the block size where the kernels are compiled
+/// for it (16 and 32, the common ones: their short rows unroll), B = 0 (any size) otherwise.
+template <class Kernel>
+decltype(auto) with_block_size(int bs, Kernel&& kernel) {
+  if (bs == 16) return kernel(std::integral_constant<int, 16>{});
+  if (bs == 32) return kernel(std::integral_constant<int, 32>{});
+  return kernel(std::integral_constant<int, 0>{});
+}
 
 template <int Dim, int kOrder, int kBlockSize>
 std::pair<double, double> maxima(const double* u, const DetailRows<Dim>& rows, double* along_x, double* last) {
@@ -169,8 +179,7 @@ GRAINWAVE_KERNEL_CLONES std::pair<double, double> value_range(const double* u, s
 
 namespace {
 
-/// interior_largest_magnitude with the block size at compile time for the common sizes (as for
-/// the maxima: the short rows unroll), 0 for any.
+/// interior_largest_magnitude for block size kBlockSize (0: any, see with_block_size).
 template <int kBlockSize>
 double largest_magnitude(const double* u, int dim, int bs, int g) {
   const auto ubs = kBlockSize > 0 ? static_cast<std::size_t>(kBlockSize) : static_cast<std::size_t>(bs);
@@ -201,9 +210,7 @@ double largest_magnitude(const double* u, int dim, int bs, int g) {
 
 GRAINWAVE_KERNEL_CLONES double interior_largest_magnitude(const double* u, int dim, int bs, int g) {
   // The same comparisons in the same order whichever is compiled: the same maximum.
-  if (bs == 16) return largest_magnitude<16>(u, dim, bs, g);
-  if (bs == 32) return largest_magnitude<32>(u, dim, bs, g);
-  return largest_magnitude<0>(u, dim, bs, g);
+  return with_block_size(bs, [&](auto size) { return largest_magnitude<decltype(size)::value>(u, dim, bs, g); });
 }
 
 namespace {
@@ -212,14 +219,10 @@ namespace {
 /// size, the others for any.
 template <int Dim>
 std::pair<double, double> dispatch(const double* u, const DetailRows<Dim>& rows, double* along_x, double* last) {
-  if (rows.order == 4) {
-    if (rows.block_size == 32) return maxima<Dim, 4, 32>(u, rows, along_x, last);
-    if (rows.block_size == 16) return maxima<Dim, 4, 16>(u, rows, along_x, last);
-    return maxima<Dim, 4, 0>(u, rows, along_x, last);
-  }
-  if (rows.block_size == 32) return maxima<Dim, 6, 32>(u, rows, along_x, last);
-  if (rows.block_size == 16) return maxima<Dim, 6, 16>(u, rows, along_x, last);
-  return maxima<Dim, 6, 0>(u, rows, along_x, last);
+  return with_block_size(rows.block_size, [&](auto size) {
+    constexpr int kSize = decltype(size)::value;
+    return rows.order == 4 ? maxima<Dim, 4, kSize>(u, rows, along_x, last) : maxima<Dim, 6, kSize>(u, rows, along_x, last);
+  });
 }
 
 }  // namespace

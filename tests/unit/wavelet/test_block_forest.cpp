@@ -170,12 +170,23 @@ void expect_symmetric_neighbours(const gw::BlockForest<Dim>& forest) {
     for (const auto& nb : around) {
       const auto j = forest.find(nb.key);
       ASSERT_TRUE(j.has_value()) << "neighbour is not a leaf";
+      EXPECT_EQ(nb.leaf, *j) << "neighbour's leaf index";
       EXPECT_EQ(nb.key.level - forest.leaves()[i].level, nb.level_difference);
       EXPECT_LE(std::abs(nb.level_difference), 1);
       pairs.emplace(i, *j);
     }
   }
   for (const auto& [i, j] : pairs) EXPECT_TRUE(pairs.contains({j, i})) << "leaf " << i << " sees " << j << " but not back";
+  // The cached lists are the same as the computed ones.
+  for (std::size_t i = 0; i < forest.size(); ++i) {
+    forest.neighbours(forest.leaves()[i], around);
+    const auto& cached = forest.leaf_neighbours(i);
+    ASSERT_EQ(cached.size(), around.size());
+    for (std::size_t k = 0; k < around.size(); ++k) {
+      EXPECT_EQ(cached[k].key, around[k].key);
+      EXPECT_EQ(cached[k].leaf, around[k].leaf);
+    }
+  }
 }
 
 template <int Dim>
