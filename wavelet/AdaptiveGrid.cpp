@@ -200,10 +200,12 @@ int AdaptiveGrid<Dim>::owner(std::size_t leaf) const {
 template <int Dim>
 typename AdaptiveGrid<Dim>::Point AdaptiveGrid<Dim>::spacing(int level) const {
   Point h{};
+  // 2^level exactly, as std::ldexp(1.0, level) gives it, without a library call (block origins
+  // and spacings are asked for every leaf in every adaptation pass: the forced region's boxes).
+  const double blocks_per_root = level >= 0 && level < 63 ? static_cast<double>(std::uint64_t{1} << level) : std::ldexp(1.0, level);
   for (int a = 0; a < Dim; ++a) {
     const auto au = static_cast<std::size_t>(a);
-    h[au] = (config_.hi[au] - config_.lo[au]) /
-            (static_cast<double>(config_.roots[au]) * config_.block_size * std::ldexp(1.0, level));
+    h[au] = (config_.hi[au] - config_.lo[au]) / (static_cast<double>(config_.roots[au]) * config_.block_size * blocks_per_root);
   }
   return h;
 }
@@ -476,7 +478,8 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
       plan.dest.resize(rows + (k1 - k0));
       for (std::size_t k = k0; k < k1; ++k) plan.dest[rows + k - k0] = old.dest[k] + shift;
       const auto term_shift = static_cast<std::int32_t>(first_term) - static_cast<std::int32_t>(t0);
-      for (std::size_t k = k0 + 1; k <= k1; ++k) plan.local_begin.push_back(old.local_begin[k] + term_shift);
+      plan.local_begin.resize(rows + 1 + (k1 - k0));
+      for (std::size_t k = k0 + 1; k <= k1; ++k) plan.local_begin[rows + k - k0] = old.local_begin[k] + term_shift;
       plan.remote_begin.resize(plan.remote_begin.size() + (k1 - k0), static_cast<std::int32_t>(remote_pending.size()));
       plan.local_src.resize(first_term + (t1 - t0));
       plan.local_src_slot.resize(first_term + (t1 - t0));
@@ -503,6 +506,21 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
     resolver.forget();
     const std::size_t remote_before = remote_pending.size();
     const auto c = key.coords();
+    std::array<GlobalIndex64, Dim> points_along{};  // per axis, at the block's level
+    for (int a = 0; a < Dim; ++a) points_along[static_cast<std::size_t>(a)] = resolver.points_along(a, key.level);
+    // One row per ghost point, in array order: the row lists are sized once and written by
+    // index (a push_back per row and list was a tenth of a rebuild).
+    const std::size_t first_row = plan.dest.size();
+    const std::size_t ghost_rows = block_volume_ - interior_points_;
+    plan.dest.resize(first_row + ghost_rows);
+    plan.local_begin.resize(first_row + ghost_rows + 1);
+    plan.remote_begin.resize(first_row + ghost_rows + 1);
+    std::size_t row = first_row;
+    auto end_row = [&] {
+      plan.local_begin[row + 1] = static_cast<std::int32_t>(plan.local_src.size());
+      plan.remote_begin[row + 1] = static_cast<std::int32_t>(remote_pending.size());
+      ++row;
+    };
     for (std::size_t p = 0; p < block_volume_; ++p) {
       const auto i = shape.coords(static_cast<std::ptrdiff_t>(p));
       bool interior = true, outside = false;
@@ -511,7 +529,7 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
         const auto au = static_cast<std::size_t>(a);
         const int local = i[au] - g;
         interior = interior && local >= 0 && local < bs;
-        const GlobalIndex64 n = resolver.points_along(a, key.level);
+        const GlobalIndex64 n = points_along[au];
         GlobalIndex64 v = static_cast<GlobalIndex64>(c[au]) * bs + local;
         if (v < 0 || v >= n) {
           if (config_.periodic[au]) v = ((v % n) + n) % n;
@@ -521,18 +539,36 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
       }
       if (interior) continue;
       const std::size_t at = s * block_volume_ + p;
-      plan.dest.push_back(static_cast<std::int64_t>(at));
+      plan.dest[row] = static_cast<std::int64_t>(at);
       if (outside) {
         // Never read: derivatives use one-sided rows and prediction one-sided stencils there.
         plan.kind[at] = static_cast<std::uint8_t>(GhostKind::kOutsideDomain);
-        plan.local_begin.push_back(static_cast<std::int32_t>(plan.local_src.size()));
-        plan.remote_begin.push_back(static_cast<std::int32_t>(remote_pending.size()));
+        end_row();
         continue;
       }
-      const int source_level = forest_.leaves()[resolver.leaf_containing(key.level, idx)].level;
+      // The lookup leaves the containing leaf's level in last_level (and the leaf remembered, so
+      // resolve below finds it again at once).
+      resolver.leaf_containing(key.level, idx);
+      const int source_level = resolver.last_level;
       plan.kind[at] = static_cast<std::uint8_t>(source_level == key.level  ? GhostKind::kSameLevel
                                                 : source_level > key.level ? GhostKind::kFromFiner
                                                                            : GhostKind::kFromCoarser);
+      const std::size_t source = resolver.last_leaf;
+      if (source_level >= key.level && source >= first_leaf_ && source < first_leaf_ + local_keys_.size()) {
+        // A same-level or finer leaf of this rank (most ghosts): the one term resolve() would
+        // give, its point injected (weight 1), without the term list.
+        std::array<int, Dim> q{};
+        for (int a = 0; a < Dim; ++a) {
+          const auto au = static_cast<std::size_t>(a);
+          const GlobalIndex64 fine = idx[au] << (source_level - key.level);
+          q[au] = static_cast<int>(fine - static_cast<GlobalIndex64>(resolver.last_coords[au]) * bs) + g;
+        }
+        plan.local_src.push_back(static_cast<std::int64_t>((source - first_leaf_) * block_volume_) + shape.index(q));
+        plan.local_src_slot.push_back(static_cast<std::int32_t>(source - first_leaf_));
+        plan.local_w.push_back(1.0);
+        end_row();
+        continue;
+      }
       terms.clear();
       resolver.resolve(key.level, idx, 1.0, terms);
       if (terms.size() > 1) std::sort(terms.begin(), terms.end(), [](const Term& x, const Term& y) {
@@ -544,7 +580,8 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
           w += terms[++t].weight;
         if (w == 0.0) continue;
         const std::size_t leaf = terms[t].leaf;
-        const int who = owner(leaf);
+        const bool mine = leaf >= first_leaf_ && leaf < first_leaf_ + local_keys_.size();  // no search
+        const int who = mine ? rank_ : owner(leaf);
         if (who == rank_) {
           std::array<int, Dim> q{};
           // 32-bit division: a block has at most 32^3 points (64-bit idiv dominated here).
@@ -564,9 +601,9 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
           plan.remote_w.push_back(w);
         }
       }
-      plan.local_begin.push_back(static_cast<std::int32_t>(plan.local_src.size()));
-      plan.remote_begin.push_back(static_cast<std::int32_t>(remote_pending.size()));
+      end_row();
     }
+    if (row != first_row + ghost_rows) throw std::logic_error("AdaptiveGrid: ghost rows miscounted");
     std::sort(found.begin(), found.end());
     found.erase(std::unique(found.begin(), found.end()), found.end());
     for (const std::size_t leaf : found)
@@ -1159,9 +1196,43 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_pass(const ThresholdConfig& th, AdaptPass p
     // (a lone coarsen pass, as adapt_to_function makes, keeps only what is significant). The
     // partition never splits a family of leaves, so each is judged by the rank holding it.
     std::vector<char> local_keep(local_blocks(), 0), keep(n, 0);
-    for (std::size_t l = first_leaf_; l < first_leaf_ + local_blocks(); ++l)
-      if (forest_.family_asks_to_coarsen(l, tags) && parent_significant(leaves[l].parent(), th, scale))
-        local_keep[l - first_leaf_] = 1;
+    // A family with a finer neighbour stays whatever its tags say (2:1 balance; nothing refines
+    // in a coarsen pass). Its parent's significance then matters only through the neighbours
+    // it keeps below, and only to those in a family that could coarsen: only then is it
+    // computed. The tags come out the same, without the coefficients of parents that cannot
+    // form (most families around a moving fine band). Flags at each family's first member.
+    std::vector<char> may_coarsen(n, 0);
+    std::array<std::size_t, Key::kChildren> members{};
+    for (std::size_t l = 0; l < n; ++l) {
+      if (!forest_.family_asks_to_coarsen(l, tags, &members)) continue;
+      may_coarsen[l] = std::none_of(members.begin(), members.end(), [&](std::size_t m) {
+        const auto& around_member = forest_.leaf_neighbours(m);
+        return std::any_of(around_member.begin(), around_member.end(),
+                           [](const Neighbour<Dim>& nb) { return nb.level_difference == +1; });
+      });
+    }
+    auto in_family_that_may_coarsen = [&](std::size_t leaf) {
+      if (leaves[leaf].level == 0) return false;
+      const auto first = forest_.find(leaves[leaf].parent().child(0));
+      return first && may_coarsen[*first] != 0;
+    };
+    for (std::size_t l = first_leaf_; l < first_leaf_ + local_blocks(); ++l) {
+      if (!forest_.family_asks_to_coarsen(l, tags, &members)) continue;
+      if (!may_coarsen[l]) {
+        if (!th.adjacent_blocks) continue;
+        // The leaves around the parent no finer than its children (those the loop below keeps)
+        // are the members' neighbours no finer than them: the members tile the parent. (The
+        // members' own family cannot coarsen.)
+        const bool matters = std::any_of(members.begin(), members.end(), [&](std::size_t m) {
+          const auto& around_member = forest_.leaf_neighbours(m);
+          return std::any_of(around_member.begin(), around_member.end(), [&](const Neighbour<Dim>& nb) {
+            return nb.level_difference <= 0 && nb.key.level >= 1 && in_family_that_may_coarsen(nb.leaf);
+          });
+        });
+        if (!matters) continue;
+      }
+      if (parent_significant(leaves[l].parent(), th, scale)) local_keep[l - first_leaf_] = 1;
+    }
     gather_leaf_flags(local_keep, keep);
     // Adjacency in space: the refine pass also refines the same-or-coarser neighbours of a
     // block it refines for significance, so the families holding them are kept as well (the
