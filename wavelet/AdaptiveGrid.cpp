@@ -1094,7 +1094,7 @@ bool AdaptiveGrid<Dim>::parent_significant(const Key& parent, const ThresholdCon
 
 template <int Dim>
 AdaptCounts AdaptiveGrid<Dim>::adapt(const ThresholdConfig& th, AdaptPass pass, const ForcedRegion<Dim>& forced) {
-  return adapt_pass(th, pass, forced, false, nullptr);
+  return adapt_pass(th, pass, forced, false, nullptr, nullptr);
 }
 
 template <int Dim>
@@ -1103,20 +1103,24 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_cycle(const ThresholdConfig& th, const Forc
   // block and field gives both maxima). It is still valid if the coarsen pass changed nothing,
   // the usual case once the grid has settled (the coarsen pass keeps what the refine pass would
   // add again); otherwise the refine pass computes it afresh.
-  std::vector<char> near_sig;
-  const AdaptCounts coarsened = adapt_pass(th, AdaptPass::kCoarsen, forced, true, &near_sig);
+  // So is the forced region's verdict on each leaf (the caller's predicate, often the costlier
+  // part of a pass around moving bodies).
+  std::vector<char> near_sig, forced_leaves;
+  const AdaptCounts coarsened = adapt_pass(th, AdaptPass::kCoarsen, forced, true, &near_sig, &forced_leaves);
   const bool unchanged = coarsened.refined == 0 && coarsened.coarsened == 0;
-  const AdaptCounts refined = adapt_pass(th, AdaptPass::kRefine, forced, true, unchanged ? &near_sig : nullptr);
+  const AdaptCounts refined = adapt_pass(th, AdaptPass::kRefine, forced, true, unchanged ? &near_sig : nullptr,
+                                         unchanged ? &forced_leaves : nullptr);
   return {coarsened.refined + refined.refined, coarsened.coarsened + refined.coarsened};
 }
 
 template <int Dim>
 AdaptCounts AdaptiveGrid<Dim>::adapt_pass(const ThresholdConfig& th, AdaptPass pass, const ForcedRegion<Dim>& forced,
-                                          bool cycle, std::vector<char>* refine_sig) {
+                                          bool cycle, std::vector<char>* refine_sig, std::vector<char>* forced_leaves) {
   const std::size_t n = forest_.size();
   const auto leaves = forest_.leaves();
   std::vector<char> force(n, 0), near_sig(n, 0);
-  if (forced)
+  if (forced_leaves && forced_leaves->size() == n) force = *forced_leaves;
+  else if (forced)
     for (std::size_t l = 0; l < n; ++l) {
       const Point lo = origin(leaves[l]), h = spacing(leaves[l].level);
       Point hi{};
@@ -1124,6 +1128,7 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_pass(const ThresholdConfig& th, AdaptPass p
         hi[static_cast<std::size_t>(a)] = lo[static_cast<std::size_t>(a)] + config_.block_size * h[static_cast<std::size_t>(a)];
       force[l] = forced(lo, hi);
     }
+  if (forced_leaves && forced_leaves->size() != n) *forced_leaves = force;
   // A leaf's significance decides its own tag only if the pass can change it (below the finest
   // level and not forced when refining, above the coarsest and not forced when coarsening), and
   // a neighbour's only through the adjacent zone. Leaves it can decide nothing for are not

@@ -310,9 +310,10 @@ class AdaptiveGrid {
   std::pair<bool, bool> block_significance(std::size_t slot, const ThresholdConfig& th,
                                            std::span<const double> scale, double any_fraction) const;
   /// One adaptation pass, alone or as part of adapt_cycle (refine_sig: the refine pass's
-  /// significance, computed by the coarsen pass, used by the refine pass).
+  /// significance, computed by the coarsen pass, used by the refine pass; forced_leaves: the
+  /// forced region's flag per leaf, used if it has one per leaf, stored there otherwise).
   AdaptCounts adapt_pass(const ThresholdConfig& th, AdaptPass pass, const ForcedRegion<Dim>& forced, bool cycle,
-                         std::vector<char>* refine_sig);
+                         std::vector<char>* refine_sig, std::vector<char>* forced_leaves);
   /// One flag per local block -> one per global leaf, on every rank.
   void gather_leaf_flags(std::span<const char> local, std::span<char> all) const;
   /// min u and max u of a field over a block's array, ghosts included (NaNs ignored).
