@@ -1210,11 +1210,7 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_pass(const ThresholdConfig& th, AdaptPass p
     std::array<std::size_t, Key::kChildren> members{};
     for (std::size_t l = 0; l < n; ++l) {
       if (!forest_.family_asks_to_coarsen(l, tags, &members)) continue;
-      may_coarsen[l] = std::none_of(members.begin(), members.end(), [&](std::size_t m) {
-        const auto& around_member = forest_.leaf_neighbours(m);
-        return std::any_of(around_member.begin(), around_member.end(),
-                           [](const Neighbour<Dim>& nb) { return nb.level_difference == +1; });
-      });
+      may_coarsen[l] = !forest_.balance_keeps_family(members);
     }
     auto in_family_that_may_coarsen = [&](std::size_t leaf) {
       if (leaves[leaf].level == 0) return false;

@@ -194,6 +194,16 @@ void BlockForest<Dim>::assign_leaves(std::vector<Key> next) {
 }
 
 template <int Dim>
+bool BlockForest<Dim>::balance_keeps_family(const std::array<std::size_t, Key::kChildren>& members,
+                                            std::span<const char> refine) const {
+  // The parent would touch something finer than the family's level after this refinement.
+  for (const std::size_t m : members)
+    for (const auto& nb : leaf_neighbours(m))
+      if (nb.level_difference == +1 || (nb.level_difference == 0 && !refine.empty() && refine[nb.leaf])) return true;
+  return false;
+}
+
+template <int Dim>
 AdaptCounts BlockForest<Dim>::adapted_leaves(std::span<const AdaptTag> tags, std::vector<Key>& next) const {
   next.clear();
   if (tags.size() != leaves_.size())
@@ -228,16 +238,8 @@ AdaptCounts BlockForest<Dim>::adapted_leaves(std::span<const AdaptTag> tags, std
   for (std::size_t i = 0; i < n; ++i) {
     std::array<std::size_t, Key::kChildren> members{};
     if (!family_asks_to_coarsen(i, tags, &members)) continue;
-    bool ok = std::none_of(members.begin(), members.end(), [&](std::size_t j) { return refine[j] != 0; });
-    for (int k = 0; k < Key::kChildren && ok; ++k) {
-      for (const auto& nb : leaf_neighbours(members[static_cast<std::size_t>(k)])) {
-        const bool finer_after = nb.level_difference == +1 || (nb.level_difference == 0 && refine[nb.leaf]);
-        if (finer_after) {
-          ok = false;
-          break;
-        }
-      }
-    }
+    const bool ok = std::none_of(members.begin(), members.end(), [&](std::size_t j) { return refine[j] != 0; }) &&
+                    !balance_keeps_family(members, refine);
     if (!ok) continue;
     for (std::size_t j : members) coarsen[j] = 1;
     ++counts.coarsened;

@@ -85,6 +85,11 @@ class BlockForest {
   /// of an adaptation cycle (tagging, the adjacent zone, balance) asks for the same ones.
   const std::vector<Neighbour<Dim>>& leaf_neighbours(std::size_t leaf) const;
 
+  /// Whether 2:1 balance keeps a family of leaves (its members' indices) from coarsening: a
+  /// member has a finer neighbour, or a same-level one flagged in `refine` (one flag per leaf;
+  /// empty: nothing refines).
+  bool balance_keeps_family(const std::array<std::size_t, Key::kChildren>& members, std::span<const char> refine = {}) const;
+
   /// Refine/coarsen by one tag per leaf (in leaves() order), then enforce 2:1 balance.
   AdaptCounts adapt(std::span<const AdaptTag> tags);
   /// What adapt(tags) would do, without doing it: the counts, and the leaves after it in
