@@ -324,6 +324,17 @@ struct PointResolver {
     }
     throw std::logic_error("AdaptiveGrid: point not covered by the forest");
   }
+  /// The interior coordinates, in the leaf last found (at its level, no coarser than `level`),
+  /// of the level-`level` point idx it contains: the point injected from there.
+  std::array<int, Dim> injected(int level, const std::array<GlobalIndex64, Dim>& idx) const {
+    std::array<int, Dim> i{};
+    for (int a = 0; a < Dim; ++a) {
+      const auto au = static_cast<std::size_t>(a);
+      const GlobalIndex64 fine = idx[au] << (last_level - level);
+      i[au] = static_cast<int>(fine - static_cast<GlobalIndex64>(last_coords[au]) * config.block_size);
+    }
+    return i;
+  }
   mutable int last_level = -1;
   mutable std::array<std::uint32_t, Dim> last_coords{};
   mutable std::array<GlobalIndex64, Dim> last_first{};  ///< last_coords * block_size
@@ -341,13 +352,9 @@ struct PointResolver {
     // leaf_containing leaves the leaf's level and coordinates in last_*: no de-interleaving.
     const int leaf_level = last_level;
     if (leaf_level >= level) {
-      const auto c = last_coords;
+      const auto i = injected(level, idx);
       std::int64_t point = 0;
-      for (int a = Dim - 1; a >= 0; --a) {
-        const auto au = static_cast<std::size_t>(a);
-        const GlobalIndex64 fine = idx[au] << (leaf_level - level);
-        point = point * config.block_size + (fine - static_cast<GlobalIndex64>(c[au]) * config.block_size);
-      }
+      for (int a = Dim - 1; a >= 0; --a) point = point * config.block_size + i[static_cast<std::size_t>(a)];
       out.push_back({leaf, point, weight});
       return;
     }
@@ -557,12 +564,8 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
       if (source_level >= key.level && source >= first_leaf_ && source < first_leaf_ + local_keys_.size()) {
         // A same-level or finer leaf of this rank (most ghosts): the one term resolve() would
         // give, its point injected (weight 1), without the term list.
-        std::array<int, Dim> q{};
-        for (int a = 0; a < Dim; ++a) {
-          const auto au = static_cast<std::size_t>(a);
-          const GlobalIndex64 fine = idx[au] << (source_level - key.level);
-          q[au] = static_cast<int>(fine - static_cast<GlobalIndex64>(resolver.last_coords[au]) * bs) + g;
-        }
+        auto q = resolver.injected(key.level, idx);
+        for (int& qa : q) qa += g;
         plan.local_src.push_back(static_cast<std::int64_t>((source - first_leaf_) * block_volume_) + shape.index(q));
         plan.local_src_slot.push_back(static_cast<std::int32_t>(source - first_leaf_));
         plan.local_w.push_back(1.0);
@@ -1206,20 +1209,21 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_pass(const ThresholdConfig& th, AdaptPass p
     // it keeps below, and only to those in a family that could coarsen: only then is it
     // computed. The tags come out the same, without the coefficients of parents that cannot
     // form (most families around a moving fine band). Flags at each family's first member.
-    std::vector<char> may_coarsen(n, 0);
-    std::array<std::size_t, Key::kChildren> members{};
-    for (std::size_t l = 0; l < n; ++l) {
-      if (!forest_.family_asks_to_coarsen(l, tags, &members)) continue;
-      may_coarsen[l] = !forest_.balance_keeps_family(members);
-    }
+    enum : char { kNotAsking, kBalanceKeeps, kMayCoarsen };
+    std::vector<char> family(n, kNotAsking);
+    std::vector<std::array<std::size_t, Key::kChildren>> members_of(n);
+    for (std::size_t l = 0; l < n; ++l)
+      if (forest_.family_asks_to_coarsen(l, tags, &members_of[l]))
+        family[l] = forest_.balance_keeps_family(members_of[l]) ? kBalanceKeeps : kMayCoarsen;
     auto in_family_that_may_coarsen = [&](std::size_t leaf) {
       if (leaves[leaf].level == 0) return false;
       const auto first = forest_.find(leaves[leaf].parent().child(0));
-      return first && may_coarsen[*first] != 0;
+      return first && family[*first] == kMayCoarsen;
     };
     for (std::size_t l = first_leaf_; l < first_leaf_ + local_blocks(); ++l) {
-      if (!forest_.family_asks_to_coarsen(l, tags, &members)) continue;
-      if (!may_coarsen[l]) {
+      if (family[l] == kNotAsking) continue;
+      const auto& members = members_of[l];
+      if (family[l] == kBalanceKeeps) {
         if (!th.adjacent_blocks) continue;
         // The leaves around the parent no finer than its children (those the loop below keeps)
         // are the members' neighbours no finer than them: the members tile the parent. (The
