@@ -21,8 +21,12 @@ namespace grainwave::particles::dem {
 struct ContactHistoryEntry;
 
 struct Contact {
+  static constexpr std::uint32_t kNotListed = 0xffffffffu;
   std::uint32_t i = 0;
   std::uint32_t partner = 0;  ///< slot of j, or wall index when is_wall
+  /// Index of the Verlet-list pair the contact was found from (its history lookup is cached
+  /// per pair), or kNotListed (a cell search, a wall).
+  std::uint32_t list_index = kNotListed;
   bool is_wall = false;
   Vec3 normal = Vec3::Zero();
   double overlap = 0.0;

@@ -47,6 +47,7 @@ void ContactForceField::wall_contact(const ParticleStore& store, std::size_t i, 
                                      Contact& c) const {
   c.i = static_cast<std::uint32_t>(i);
   c.partner = static_cast<std::uint32_t>(wall_index);
+  c.list_index = Contact::kNotListed;
   c.is_wall = true;
   c.normal = normal;
   c.overlap = overlap;
@@ -118,8 +119,11 @@ void ContactForceField::external_forces(const ParticleStore& store) {
 template <class ContactFunction>
 GRAINWAVE_FLATTEN void ContactForceField::for_each_contact(const ParticleStore& store, ContactFunction&& f) {
   Contact c;
-  auto pair = [&](std::uint32_t i, std::uint32_t j, const Vec3& d, double distance2) {
-    if (particle_contact(store, i, j, d, distance2, c)) f(c);
+  auto pair = [&](std::uint32_t i, std::uint32_t j, const Vec3& d, double distance2,
+                  std::uint32_t list_index = Contact::kNotListed) {
+    if (!particle_contact(store, i, j, d, distance2, c)) return;
+    c.list_index = list_index;
+    f(c);
   };
   if (use_list_) verlet_.for_each_touching_pair(store, pair);
   else cells_.for_each_touching_pair(pair);
@@ -160,7 +164,9 @@ void ContactForceField::touch_history(const ParticleStore& store, Contact& c) {
     c.relative_velocity = -c.relative_velocity;
   }
   const std::int64_t other = c.is_wall ? ContactHistory::wall_key(c.partner) : store.id[c.partner];
-  c.history = history_.touch(store.id[c.i], other);
+  c.history = c.list_index < history_hints_.size()
+                  ? history_.touch(store.id[c.i], other, history_hints_[c.list_index])
+                  : history_.touch(store.id[c.i], other);
 }
 
 template <class Normal, class Tangential>
@@ -269,6 +275,10 @@ void ContactForceField::evaluate(const ParticleStore& store, HistoryStage stage,
                    has_ghosts_ ? &visit_order_ : nullptr);
     } else if (verlet_.stale(store, domain_)) {
       verlet_.build(store, domain_, search_cell_width(store, skin), skin);
+    }
+    if (use_list_ && model_.tangential->needs_history() && history_hints_build_ != verlet_.builds()) {
+      history_hints_.assign(verlet_.pair_count(), Contact::kNotListed);  // no hint: probe
+      history_hints_build_ = verlet_.builds();
     }
     if (settings_.fused) {
       if (const auto* law = dynamic_cast<const LinearSpringDashpot*>(model_.normal.get());

@@ -163,6 +163,10 @@ class ContactForceField {
   LinkedCells cells_;
   VerletList verlet_;
   ContactHistory history_;
+  /// Per Verlet-list pair, the history slot its contact had last (ContactHistory::touch with a
+  /// hint), for the list of build number history_hints_build_.
+  std::vector<std::uint32_t> history_hints_;
+  long history_hints_build_ = -1;
   std::vector<Contact> contacts_;
   std::size_t contact_count_ = 0;
   DeepestContact deepest_;

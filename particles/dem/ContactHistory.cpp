@@ -62,15 +62,7 @@ ContactHistoryEntry* ContactHistory::touch(std::int64_t a, std::int64_t b) {
       ++occupied_;
       return &e;
     }
-    if (e.first == a && e.second == b) {
-      if (!live(e)) {
-        e.displacement.setZero();
-        e.stage_velocity.setZero();
-        e.is_new = true;
-      }
-      e.last_step = step_;
-      return &e;
-    }
+    if (e.first == a && e.second == b) return renew(e);
     k = (k + 1) & (slots_.size() - 1);
   }
 }

@@ -14,6 +14,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 namespace grainwave::particles::dem {
@@ -44,6 +45,20 @@ class ContactHistory {
   /// Entry of the pair (a, b), order-independent; a fresh zeroed entry when the pair was not in
   /// contact during the current or previous step. Requires !nearly_full().
   ContactHistoryEntry* touch(std::int64_t a, std::int64_t b);
+  /// The same, trying slot `hint` first and leaving there the slot of the entry returned. A
+  /// caller that meets the same pair step after step (a Verlet list's pair) keeps one hint per
+  /// pair and mostly skips the probe. Any hint is safe: a slot holding the pair's key is its
+  /// entry (keys are unique), and a purge that moved the entry makes the next call probe.
+  ContactHistoryEntry* touch(std::int64_t a, std::int64_t b, std::uint32_t& hint) {
+    if (a > b) std::swap(a, b);
+    if (hint < slots_.size()) {
+      ContactHistoryEntry& e = slots_[hint];
+      if (e.first == a && e.second == b && e.last_step >= 0) return renew(e);
+    }
+    ContactHistoryEntry* e = touch(a, b);
+    hint = static_cast<std::uint32_t>(e - slots_.data());
+    return e;
+  }
   /// The entry when the pair is live, else nullptr (read-only; does not touch).
   const ContactHistoryEntry* find(std::int64_t a, std::int64_t b) const;
 
@@ -70,6 +85,16 @@ class ContactHistory {
 
  private:
   bool live(const ContactHistoryEntry& e) const { return e.last_step >= step_ - 1; }
+  /// A found entry touched in this step: restarted from zero if it was stale.
+  ContactHistoryEntry* renew(ContactHistoryEntry& e) {
+    if (!live(e)) {
+      e.displacement.setZero();
+      e.stage_velocity.setZero();
+      e.is_new = true;
+    }
+    e.last_step = step_;
+    return &e;
+  }
   std::size_t home(std::int64_t a, std::int64_t b) const;
   /// Widens id_span_ to the key's particle id.
   void note_key(std::int64_t a, std::int64_t b);

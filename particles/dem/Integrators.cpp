@@ -65,21 +65,19 @@ void VelocityVerlet::step(ParticleStore& store, ContactForceField& field, double
   // evaluation are the prediction v_n + Δt a_n of v_{n+1} rather than the half-step velocity,
   // so velocity-dependent forces (dashpots, drag) are second-order accurate; the final kick
   // swaps the old half of the acceleration for the new one. One fused loop.
-  old_force_.resize(n);
-  old_torque_.resize(n);
+  // force_ and torque_ keep the old forces until the second kick has used them.
   inverse_mass_.resize(n);
   dt_over_inertia_.resize(n);
   const Domain& domain = field.domain();
+  const Domain::WrapFreeBox stays = domain.wrap_free_box();
   for (std::size_t i = 0; i < n; ++i) {
     const Vec3 f = force_[i], t = torque_[i];
-    old_force_[i] = f;
-    old_torque_[i] = t;
     const double inv_m = store.inverse_mass(i);
     inverse_mass_[i] = inv_m;
     if (inv_m == 0.0) continue;
     const Vec3 half_kick = (0.5 * dt * inv_m) * f;
     store.position[i] += dt * (store.velocity[i] + half_kick);
-    domain.wrap(store.position[i]);
+    if (stays.outside(store.position[i])) domain.wrap(store.position[i]);
     store.velocity[i] += 2.0 * half_kick;
     dt_over_inertia_[i] = dt / store.inertia[i];
     store.angular_velocity[i] += dt_over_inertia_[i] * t;
@@ -91,12 +89,13 @@ void VelocityVerlet::step(ParticleStore& store, ContactForceField& field, double
     // The evaluation keeps the first n slots as they were, so the step's own 1/m and dt/I
     // still belong to them. (0.5 dt) / I is 0.5 (dt / I) exactly: halving rounds nothing.
     const double inv_m = inverse_mass_[i];
-    if (inv_m == 0.0) continue;
-    store.velocity[i] += (0.5 * dt * inv_m) * (f[i] - old_force_[i]);
-    store.angular_velocity[i] += (0.5 * dt_over_inertia_[i]) * (t[i] - old_torque_[i]);
+    if (inv_m != 0.0) {
+      store.velocity[i] += (0.5 * dt * inv_m) * (f[i] - force_[i]);
+      store.angular_velocity[i] += (0.5 * dt_over_inertia_[i]) * (t[i] - torque_[i]);
+    }
+    force_[i] = f[i];
+    torque_[i] = t[i];
   }
-  force_.assign(f.begin(), f.begin() + static_cast<std::ptrdiff_t>(n));
-  torque_.assign(t.begin(), t.begin() + static_cast<std::ptrdiff_t>(n));
 }
 
 void RungeKutta2::step(ParticleStore& store, ContactForceField& field, double dt,
@@ -123,6 +122,7 @@ void RungeKutta2::step(ParticleStore& store, ContactForceField& field, double dt
   // cells wrap indices, so a centre slightly outside a periodic box is found correctly.
   evaluate(HistoryStage::kCorrect);
   const Domain& domain = field.domain();
+  const Domain::WrapFreeBox stays = domain.wrap_free_box();
   for (std::size_t i = 0; i < n; ++i) {
     const double inv_m = store.inverse_mass(i);
     if (inv_m == 0.0) continue;
@@ -130,7 +130,7 @@ void RungeKutta2::step(ParticleStore& store, ContactForceField& field, double dt
     store.velocity[i] = v0_[i] + (0.5 * dt) * (a0_[i] + inv_m * field.force()[i]);
     store.angular_velocity[i] =
         w0_[i] + (0.5 * dt) * (alpha0_[i] + field.torque()[i] / store.inertia[i]);
-    domain.wrap(store.position[i]);
+    if (stays.outside(store.position[i])) domain.wrap(store.position[i]);
   }
 }
 

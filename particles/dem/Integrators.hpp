@@ -62,7 +62,6 @@ class VelocityVerlet {
  private:
   bool have_forces_ = false;
   std::vector<Vec3> force_, torque_;
-  std::vector<Vec3> old_force_, old_torque_;
   // Per slot, from the first loop of step() for its second: 1/m and dt/I (each division once).
   std::vector<double> inverse_mass_, dt_over_inertia_;
 };

@@ -7,7 +7,10 @@
 
 #include <Eigen/Geometry>
 
+#include <algorithm>
+#include <cstdint>
 #include <numbers>
+#include <vector>
 
 namespace gw = grainwave::particles;
 namespace dem = grainwave::particles::dem;
@@ -221,4 +224,44 @@ TEST(ContactHistory, LookupsStayShortForDenseIdsAndWallContacts) {
   // 3 for the 4-5 entries (live and stale) each holds here. (The old homes: about 20 000.)
   EXPECT_LT(probes, 5.0);
   EXPECT_GT(history.live_count(), static_cast<std::size_t>(3 * n));
+}
+
+// A Verlet list keeps one hint per pair (the slot its entry had last). Whatever the hint, the
+// entry returned must be the pair's own, the one the probe finds: right after the hint was
+// set, after a purge moved every entry, and with a hint that names another pair's slot.
+TEST(ContactHistory, HintedTouchReturnsThePairsOwnEntryWhateverTheHint) {
+  dem::ContactHistory h;
+  h.begin_step();
+  h.prepare();
+  constexpr int kPairs = 600;
+  std::vector<std::uint32_t> hints(kPairs, 0xffffffffu);
+  for (std::int64_t k = 0; k < kPairs; ++k) {
+    if (h.nearly_full()) h.make_room();
+    h.touch(k, k + 1, hints[static_cast<std::size_t>(k)])->displacement.x() = static_cast<double>(k);
+  }
+  auto expect_own_entries = [&](const char* when) {
+    for (std::int64_t k = 0; k < kPairs; ++k) {
+      const dem::ContactHistoryEntry* e = h.touch(k + 1, k, hints[static_cast<std::size_t>(k)]);
+      ASSERT_EQ(e, h.find(k, k + 1)) << when << ", pair " << k;
+      ASSERT_EQ(e->displacement.x(), static_cast<double>(k)) << when << ", pair " << k;
+    }
+  };
+  expect_own_entries("hints fresh");
+  // Another pair's slot as the hint: the probe must still find the right entry.
+  std::rotate(hints.begin(), hints.begin() + 1, hints.end());
+  std::vector<std::uint32_t> rotated = hints;
+  for (std::int64_t k = 0; k < kPairs; ++k) {
+    const dem::ContactHistoryEntry* e = h.touch(k, k + 1, hints[static_cast<std::size_t>(k)]);
+    ASSERT_EQ(e, h.find(k, k + 1)) << "hint of another pair, pair " << k;
+  }
+  EXPECT_NE(hints, rotated) << "the hints were corrected";
+  // A purge into a larger table moves the entries; the old hints are then mostly wrong.
+  const std::size_t before = h.capacity();
+  h.begin_step();
+  for (std::int64_t k = 0; k < 3 * kPairs; ++k) {
+    if (h.nearly_full()) h.make_room();
+    h.touch(10000 + k, 20000 + k);
+  }
+  ASSERT_GT(h.capacity(), before);
+  expect_own_entries("after the table grew");
 }

@@ -115,6 +115,49 @@ TEST(VerletList, SameForcesAsCellSearchThroughoutAGranularGas) {
   EXPECT_LT(listed.verlet_list().builds(), steps / 5);
 }
 
+// Most listed pairs skip the minimum image (VerletList flags at the build the pairs that may
+// need it). Through a fast granular gas in a box periodic on all three axes, both with the list
+// managing itself and planned before each step, every touching pair's separation must be the
+// minimum image to the bit, and pairs must touch across the periodic faces (so both kinds of
+// pair were met).
+TEST(VerletList, ListedSeparationsAreMinimumImagesBitwise) {
+  for (const bool managed : {false, true}) {
+    gw::Domain domain;
+    domain.hi = Vec3(5.0, 5.0, 5.0);  // periodic on every axis
+    const auto model = frictional_model();
+    dem::ContactForceSettings settings;
+    settings.verlet_skin = 0.2;
+    settings.verlet_managed = managed;
+    dem::ContactForceField field(model, domain, settings);
+    gw::ParticleStore s = granular_gas(7, true);
+    for (auto& v : s.velocity) v *= 4.0;  // many wraps within a list's life
+    dem::VelocityVerlet verlet;
+    const double dt = dem::stable_time_step(s, *model.normal, 50);
+    std::vector<Vec3> ahead;
+    long across = 0, pairs = 0;
+    for (int step = 0; step < 1500; ++step) {
+      if (managed) {  // the caller plans the step (as DemSystem does)
+        ASSERT_EQ(dem::prepare_listed_step(s, field, &verlet, dt, false, [&] { field.build_list(s); }, {}, ahead),
+                  dem::VerletList::kValid);
+      }
+      verlet.step(s, field, dt);
+      field.verlet_list().for_each_touching_pair(
+          s, [&](std::uint32_t i, std::uint32_t j, const Vec3& d, double distance2, std::uint32_t) {
+            const Vec3 image = domain.separation(s.position[i], s.position[j]);
+            ASSERT_EQ(d, image) << "managed " << managed << " step " << step << " pair " << i << "-" << j;
+            ASSERT_EQ(distance2, image.squaredNorm());
+            across += (s.position[j] - s.position[i]).cwiseAbs().maxCoeff() > 2.5 ? 1 : 0;
+            ++pairs;
+          });
+    }
+    std::printf("managed %d: %ld touching pairs, %ld across a periodic face, %ld builds\n", managed ? 1 : 0,
+                pairs, across, field.verlet_list().builds());
+    EXPECT_GT(pairs, 1000);
+    EXPECT_GT(across, 50);
+    EXPECT_GT(field.verlet_list().builds(), 5);
+  }
+}
+
 // The fused pass (forces computed where a contact is found, no list) against the list of
 // contacts and the batched laws: bitwise the same forces, torques, count and deepest contact,
 // for both normal laws, with walls and a finite wall segment, through a granular gas.
