@@ -9,8 +9,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <limits>
 #include <stdexcept>
 #include <type_traits>
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 namespace grainwave::particles::dem {
 
@@ -22,6 +28,7 @@ ContactForceField::ContactForceField(ContactModel model, const Domain& domain,
   plane_walls_ = walls_from_domain(domain_);
 }
 
+template <bool kWithEffectiveRadius>
 [[gnu::always_inline]] inline bool ContactForceField::particle_contact(const ParticleStore& store, std::uint32_t i, std::uint32_t j,
                                          const Vec3& d, double distance2, Contact& c) const {
   const double inverse_mass_sum = inverse_mass_[i] + inverse_mass_[j];
@@ -37,7 +44,7 @@ ContactForceField::ContactForceField(ContactModel model, const Domain& domain,
   const Vec3 spin = ri * store.angular_velocity[i] + rj * store.angular_velocity[j];
   c.relative_velocity = (store.velocity[j] - store.velocity[i]) - spin.cross(c.normal);
   c.effective_mass = 1.0 / inverse_mass_sum;
-  c.effective_radius = effective_radius(ri, rj);
+  c.effective_radius = kWithEffectiveRadius ? effective_radius(ri, rj) : std::numeric_limits<double>::quiet_NaN();
   c.history = nullptr;
   return true;
 }
@@ -116,17 +123,22 @@ void ContactForceField::external_forces(const ParticleStore& store) {
 #else
 #define GRAINWAVE_FLATTEN [[gnu::flatten]]
 #endif
-template <class ContactFunction>
+template <bool kWithEffectiveRadius, class ContactFunction>
 GRAINWAVE_FLATTEN void ContactForceField::for_each_contact(const ParticleStore& store, ContactFunction&& f) {
   Contact c;
   auto pair = [&](std::uint32_t i, std::uint32_t j, const Vec3& d, double distance2,
                   std::uint32_t list_index = Contact::kNotListed) {
-    if (!particle_contact(store, i, j, d, distance2, c)) return;
+    if (!particle_contact<kWithEffectiveRadius>(store, i, j, d, distance2, c)) return;
     c.list_index = list_index;
     f(c);
   };
   if (use_list_) verlet_.for_each_touching_pair(store, pair);
   else cells_.for_each_touching_pair(pair);
+  for_each_wall_contact(store, c, f);
+}
+
+template <class ContactFunction>
+void ContactForceField::for_each_wall_contact(const ParticleStore& store, Contact& c, ContactFunction&& f) {
   const std::size_t n = owned_end_;  // walls act on owned particles only
   for (std::size_t w = 0; w < plane_walls_.size(); ++w) {
     const PlaneWall& wall = plane_walls_[w];
@@ -179,7 +191,7 @@ void ContactForceField::evaluate_fused(const ParticleStore& store, const Normal&
   constexpr bool keeps_history = !std::is_same_v<Tangential, StaticFriction>;
   if constexpr (keeps_history) history_.prepare();
   external_forces(store);
-  for_each_contact(store, [&](Contact& c) {
+  auto contact_forces = [&](Contact& c) {
     if constexpr (keeps_history) {
       if (history_.nearly_full()) history_.make_room();
       touch_history(store, c);
@@ -189,7 +201,154 @@ void ContactForceField::evaluate_fused(const ParticleStore& store, const Normal&
     else c.tangential_force = tangential.force(c);
     note_depth(store, c);
     apply(store, c);
+  };
+  if constexpr (std::is_same_v<Normal, LinearSpringDashpot> && std::is_same_v<Tangential, StaticFriction>) {
+    if (use_list_ && settings_.batched) {
+      add_listed_pairs_linear_static(store, normal, tangential);
+      Contact c;
+      for_each_wall_contact(store, c, contact_forces);
+      return;
+    }
+  }
+  constexpr bool reads_radius = Normal::kReadsEffectiveRadius || Tangential::kReadsEffectiveRadius;
+  for_each_contact<reads_radius>(store, contact_forces);
+}
+
+namespace {
+
+// Two contacts at a time in the two lanes of a vector (GCC/Clang vector extensions; SSE2 on
+// x86-64). The element-wise operators round each lane as the scalar operation would, and nothing
+// is contracted or reassociated, so a lane holds exactly what the contact-by-contact code
+// computes. Four lanes (split into two SSE2 halves by the compiler) measured 25% slower.
+constexpr int kLanes = 2;
+using Lanes = double __attribute__((vector_size(kLanes * sizeof(double))));
+
+[[gnu::always_inline]] inline Lanes lanes_sqrt(Lanes a) {
+#if defined(__SSE2__)
+  return _mm_sqrt_pd(a);
+#else
+  return Lanes{std::sqrt(a[0]), std::sqrt(a[1])};
+#endif
+}
+/// std::max(a, b) per lane (a when a < b is false, NaN included).
+[[gnu::always_inline]] inline Lanes lanes_max(Lanes a, Lanes b) { return a < b ? b : a; }
+[[gnu::always_inline]] inline Lanes lanes_load(const double* p) {
+  Lanes v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+[[gnu::always_inline]] inline void lanes_store(double* p, Lanes v) { std::memcpy(p, &v, sizeof v); }
+/// Component k of the Vec3s at slots s[0], s[1].
+[[gnu::always_inline]] inline Lanes gather(const Vec3* v, const std::uint32_t* s, int k) {
+  Lanes r;
+  for (int l = 0; l < kLanes; ++l) r[l] = v[s[l]][k];
+  return r;
+}
+[[gnu::always_inline]] inline Lanes gather(const double* v, const std::uint32_t* s) {
+  Lanes r;
+  for (int l = 0; l < kLanes; ++l) r[l] = v[s[l]];
+  return r;
+}
+
+/// Touching pairs of one batch, then their forces (structure of arrays).
+struct PairBatch {
+  static constexpr int kSize = 64;  // a multiple of kLanes
+  int count = 0;
+  std::uint32_t i[kSize], j[kSize];
+  alignas(64) double dx[kSize], dy[kSize], dz[kSize], distance2[kSize];
+  // Out: the force on i (on_i), n × F_t (lever), the overlap.
+  alignas(64) double fx[kSize], fy[kSize], fz[kSize], lx[kSize], ly[kSize], lz[kSize], overlap[kSize];
+};
+
+}  // namespace
+
+void ContactForceField::add_listed_pairs_linear_static(const ParticleStore& store, const LinearSpringDashpot& normal,
+                                                       const StaticFriction& friction) {
+  const double stiffness = normal.stiffness(), damping_factor = normal.damping_factor();
+  const double mu = friction.friction(), regularization_speed = friction.regularization_speed();
+  const Vec3* velocity = store.velocity.data();
+  const Vec3* angular_velocity = store.angular_velocity.data();
+  const double* radius = store.radius.data();
+  const double* inverse_mass = inverse_mass_.data();
+  PairBatch b;
+  // Each lane as particle_contact, LinearSpringDashpot::force, StaticFriction::force and apply
+  // compute it, operation for operation (Eigen's cross, dot and norm in their coefficient order).
+  auto compute = [&](int l) {
+    const std::uint32_t* I = b.i + l;
+    const std::uint32_t* J = b.j + l;
+    const Lanes distance = lanes_sqrt(lanes_load(b.distance2 + l));
+    const Lanes inverse_distance = 1.0 / distance;
+    const Lanes nx = lanes_load(b.dx + l) * inverse_distance, ny = lanes_load(b.dy + l) * inverse_distance,
+                nz = lanes_load(b.dz + l) * inverse_distance;
+    const Lanes ri = gather(radius, I), rj = gather(radius, J);
+    const Lanes overlap = ri + rj - distance;
+    const Lanes sx = ri * gather(angular_velocity, I, 0) + rj * gather(angular_velocity, J, 0);
+    const Lanes sy = ri * gather(angular_velocity, I, 1) + rj * gather(angular_velocity, J, 1);
+    const Lanes sz = ri * gather(angular_velocity, I, 2) + rj * gather(angular_velocity, J, 2);
+    const Lanes vx = (gather(velocity, J, 0) - gather(velocity, I, 0)) - (sy * nz - sz * ny);
+    const Lanes vy = (gather(velocity, J, 1) - gather(velocity, I, 1)) - (sz * nx - sx * nz);
+    const Lanes vz = (gather(velocity, J, 2) - gather(velocity, I, 2)) - (sx * ny - sy * nx);
+    const Lanes effective_mass = 1.0 / (gather(inverse_mass, I) + gather(inverse_mass, J));
+    const Lanes normal_speed = vx * nx + vy * ny + vz * nz;
+    const Lanes eta = damping_factor * lanes_sqrt(effective_mass * stiffness);
+    const Lanes normal_force = stiffness * overlap - eta * normal_speed;
+    const Lanes tx = vx - normal_speed * nx, ty = vy - normal_speed * ny, tz = vz - normal_speed * nz;
+    const Lanes speed = lanes_sqrt(tx * tx + ty * ty + tz * tz);
+    const Lanes magnitude = mu * lanes_max(normal_force, Lanes{} + 0.0);
+    const Lanes scale = magnitude / lanes_max(speed, Lanes{} + regularization_speed);
+    const auto sliding = (speed != 0.0) & (magnitude != 0.0);  // else F_t = 0 exactly
+    const Lanes zero{};
+    const Lanes ftx = sliding ? scale * tx : zero, fty = sliding ? scale * ty : zero,
+                ftz = sliding ? scale * tz : zero;
+    lanes_store(b.fx + l, ftx - normal_force * nx);
+    lanes_store(b.fy + l, fty - normal_force * ny);
+    lanes_store(b.fz + l, ftz - normal_force * nz);
+    lanes_store(b.lx + l, ny * ftz - nz * fty);
+    lanes_store(b.ly + l, nz * ftx - nx * ftz);
+    lanes_store(b.lz + l, nx * fty - ny * ftx);
+    lanes_store(b.overlap + l, overlap);
+  };
+  auto flush = [&] {
+    for (int k = b.count; k % kLanes != 0; ++k) {  // pad with a copy of the first contact
+      b.i[k] = b.i[0];
+      b.j[k] = b.j[0];
+      b.dx[k] = b.dx[0];
+      b.dy[k] = b.dy[0];
+      b.dz[k] = b.dz[0];
+      b.distance2[k] = b.distance2[0];
+    }
+    for (int l = 0; l < b.count; l += kLanes) compute(l);
+    Contact c;  // for note_depth
+    c.is_wall = false;
+    for (int k = 0; k < b.count; ++k) {
+      const std::uint32_t i = b.i[k], j = b.j[k];
+      const Vec3 on_i(b.fx[k], b.fy[k], b.fz[k]);
+      const Vec3 lever(b.lx[k], b.ly[k], b.lz[k]);
+      force_[i] += on_i;
+      torque_[i] += radius[i] * lever;
+      force_[j] -= on_i;
+      torque_[j] += radius[j] * lever;
+      c.i = i;
+      c.partner = j;
+      c.overlap = b.overlap[k];
+      note_depth(store, c);
+    }
+    b.count = 0;
+  };
+  verlet_.for_each_touching_pair(store, [&](std::uint32_t i, std::uint32_t j, const Vec3& d, double distance2,
+                                            std::uint32_t) {
+    // The pairs particle_contact turns away (the list holds no pair of two ghosts).
+    if (inverse_mass[i] + inverse_mass[j] == 0.0 || distance2 == 0.0) return;
+    const int k = b.count++;
+    b.i[k] = i;
+    b.j[k] = j;
+    b.dx[k] = d.x();
+    b.dy[k] = d.y();
+    b.dz[k] = d.z();
+    b.distance2[k] = distance2;
+    if (b.count == PairBatch::kSize) flush();
   });
+  if (b.count > 0) flush();
 }
 
 template <class Normal>

@@ -7,6 +7,9 @@
 // under gravity alone settles at the terminal speed v_term.
 // This class owns the loops and scratch memory; the laws own the pointwise physics. Nothing is
 // allocated per evaluation once the contact list has reached its working size.
+// For the linear spring–dashpot with static friction on a Verlet list (the curtain and channel
+// cases), the listed pairs are evaluated two at a time in SIMD lanes (settings().batched), with
+// the same arithmetic per contact and the forces added in the same order: bitwise the same.
 //
 // Ghosts (domain decomposition, particles/dem/SlabDecomposition): copies of other ranks'
 // particles, flagged kGhost, at the end of the store. A pair of two ghosts is skipped (another
@@ -74,6 +77,9 @@ struct ContactForceSettings {
   /// (bitwise the same forces and history: the same arithmetic, added in the same order).
   /// false keeps the list (contacts()) for every law.
   bool fused = true;
+  /// With the fused pass, a Verlet list, the linear spring–dashpot and static friction, the
+  /// listed pairs' forces are computed two at a time in SIMD lanes (bitwise the same).
+  bool batched = true;
   /// Particle count that sizes the cell grid (LinkedCells::build); 0: the store's size. A
   /// domain-decomposed run sets the global count so that every rank uses the serial grid.
   std::size_t grid_particles = 0;
@@ -87,6 +93,9 @@ struct DeepestContact {
   bool is_wall = false;
   std::int64_t id = -1;  ///< id of particle i (slots of ghosts do not outlive the step)
 };
+
+class LinearSpringDashpot;
+class StaticFriction;
 
 class ContactForceField {
  public:
@@ -125,10 +134,22 @@ class ContactForceField {
 
  private:
   /// Calls f(contact) for every touching particle pair, then for every wall contact, in a
-  /// fixed order; the contact's forces are not set yet.
-  template <class ContactFunction>
+  /// fixed order; the contact's forces are not set yet. Without kWithEffectiveRadius a pair
+  /// contact's effective_radius is NaN (a law that reads it would be caught by the step's
+  /// checks): the laws that do not read it save a division per contact.
+  template <bool kWithEffectiveRadius = true, class ContactFunction>
   void for_each_contact(const ParticleStore& store, ContactFunction&& f);
+  /// The wall part of for_each_contact (f is handed `c` to fill and pass on).
+  template <class ContactFunction>
+  void for_each_wall_contact(const ParticleStore& store, Contact& c, ContactFunction&& f);
+  /// The fused pass's listed particle pairs for the linear spring–dashpot with static friction
+  /// (the laws of the curtain and channel cases), two contacts at a time in SIMD lanes: the
+  /// same operations per contact as the contact-by-contact pass, and the forces added and the
+  /// contacts counted in the same order, so every result is the same to the bit.
+  void add_listed_pairs_linear_static(const ParticleStore& store, const LinearSpringDashpot& normal,
+                                      const StaticFriction& friction);
   /// The contact of i with particle j (d = x_j - x_i, |d|^2), false if they cannot interact.
+  template <bool kWithEffectiveRadius>
   bool particle_contact(const ParticleStore& store, std::uint32_t i, std::uint32_t j, const Vec3& d,
                         double distance2, Contact& c) const;
   void wall_contact(const ParticleStore& store, std::size_t i, std::size_t wall_index, const Vec3& wall_velocity,

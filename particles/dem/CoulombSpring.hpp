@@ -10,6 +10,8 @@ namespace grainwave::particles::dem {
 
 class CoulombSpring final : public TangentialLaw {
  public:
+  /// Whether the law reads Contact::effective_radius (the fused pass computes it only then).
+  static constexpr bool kReadsEffectiveRadius = false;
   struct Parameters {
     double stiffness = 0.0;       ///< k_t [N/m]
     double friction = 0.0;        ///< μ

@@ -16,6 +16,8 @@ namespace grainwave::particles::dem {
 
 class HertzNormal final : public NormalLaw {
  public:
+  /// Whether the law reads Contact::effective_radius (the fused pass computes it only then).
+  static constexpr bool kReadsEffectiveRadius = true;
   struct Parameters {
     double youngs_modulus = 0.0;      ///< E [Pa]
     double poisson_ratio = 0.3;       ///< ν

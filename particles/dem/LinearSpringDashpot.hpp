@@ -13,6 +13,8 @@ namespace grainwave::particles::dem {
 
 class LinearSpringDashpot final : public NormalLaw {
  public:
+  /// Whether the law reads Contact::effective_radius (the fused pass computes it only then).
+  static constexpr bool kReadsEffectiveRadius = false;
   struct Parameters {
     double stiffness = 0.0;    ///< k_n [N/m]
     double restitution = 1.0;  ///< e in (0, 1]
@@ -23,6 +25,7 @@ class LinearSpringDashpot final : public NormalLaw {
 
   /// η_n / sqrt(m* k_n), fixed by e alone.
   double damping_factor() const { return damping_factor_; }
+  double stiffness() const { return stiffness_; }
 
   double force(double overlap, double normal_speed, double effective_mass) const {
     const double eta = damping_factor_ * std::sqrt(effective_mass * stiffness_);

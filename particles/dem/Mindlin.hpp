@@ -11,6 +11,8 @@ namespace grainwave::particles::dem {
 
 class Mindlin final : public TangentialLaw {
  public:
+  /// Whether the law reads Contact::effective_radius (the fused pass computes it only then).
+  static constexpr bool kReadsEffectiveRadius = true;
   struct Parameters {
     double youngs_modulus = 0.0;  ///< E [Pa]
     double poisson_ratio = 0.3;   ///< ν

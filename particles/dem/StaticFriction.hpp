@@ -12,6 +12,8 @@ namespace grainwave::particles::dem {
 
 class StaticFriction final : public TangentialLaw {
  public:
+  /// Whether the law reads Contact::effective_radius (the fused pass computes it only then).
+  static constexpr bool kReadsEffectiveRadius = false;
   struct Parameters {
     double friction = 0.0;              ///< μ
     double regularization_speed = 0.0;  ///< ε [m/s]
@@ -19,6 +21,9 @@ class StaticFriction final : public TangentialLaw {
   explicit StaticFriction(const Parameters& parameters);
   /// Reads "friction" and "regularization_speed".
   explicit StaticFriction(const LawParameters& parameters);
+
+  double friction() const { return friction_; }
+  double regularization_speed() const { return regularization_speed_; }
 
   Vec3 force(double normal_force, const Vec3& tangential_velocity) const {
     const double speed = tangential_velocity.norm();

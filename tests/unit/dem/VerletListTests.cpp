@@ -158,6 +158,92 @@ TEST(VerletList, ListedSeparationsAreMinimumImagesBitwise) {
   }
 }
 
+// The listed pairs of the linear spring-dashpot with static friction are computed two at a
+// time in SIMD lanes (ContactForceSettings::batched). Against the contact-by-contact fused
+// pass: bitwise the same forces, torques, count and deepest contact, through a fast gas in a
+// box periodic on all axes (pairs with and without the minimum image) with some fixed
+// particles, for friction with and without regularisation and without friction (F_t = 0
+// exactly), and on one configuration whose last slots are ghosts (their pairs skipped).
+TEST(ContactForceField, BatchedLanesEqualTheContactByContactPassBitwise) {
+  auto compare = [](const dem::ContactForceField& batched, const dem::ContactForceField& single, std::size_t n,
+                    const std::string& where) {
+    ASSERT_EQ(batched.contact_count(), single.contact_count()) << where;
+    for (std::size_t i = 0; i < n; ++i) {
+      ASSERT_EQ(batched.force()[i], single.force()[i]) << where << " particle " << i;
+      ASSERT_EQ(batched.torque()[i], single.torque()[i]) << where << " particle " << i;
+    }
+    ASSERT_EQ(batched.deepest_contact().overlap_over_radius, single.deepest_contact().overlap_over_radius) << where;
+    ASSERT_EQ(batched.deepest_contact().i, single.deepest_contact().i) << where;
+    ASSERT_EQ(batched.deepest_contact().partner, single.deepest_contact().partner) << where;
+  };
+  struct Friction {
+    double friction, regularization_speed;
+  };
+  for (const Friction friction : {Friction{0.3, 0.0}, Friction{0.3, 0.05}, Friction{0.0, 0.0}}) {
+    const auto model = dem::make_contact_model(
+        "linear_spring_dashpot", {{"stiffness", 1e4}, {"restitution", 0.8}}, "static_friction",
+        {{"friction", friction.friction}, {"regularization_speed", friction.regularization_speed}});
+    gw::Domain domain;
+    domain.hi = Vec3(5.0, 5.0, 5.0);  // periodic on every axis
+    dem::ContactForceSettings settings;
+    settings.gravity = Vec3(0.0, -1.0, 0.0);
+    settings.verlet_skin = 0.2;
+    dem::ContactForceField batched(model, domain, settings);
+    settings.batched = false;
+    dem::ContactForceField single(model, domain, settings);
+    gw::ParticleStore s = granular_gas(13, true);
+    for (auto& v : s.velocity) v *= 3.0;
+    for (std::size_t i = 0; i < s.size(); i += 10) s.flags[i] |= gw::kFixed;
+    dem::VelocityVerlet verlet;
+    const double dt = dem::stable_time_step(s, *model.normal, 50);
+    long contacts = 0;
+    for (int step = 0; step < 1000; ++step) {
+      verlet.step(s, batched, dt);
+      // Both at the state after the step (the step evaluated at its predicted velocities).
+      batched.evaluate(s, dem::HistoryStage::kSingle, dt);
+      single.evaluate(s, dem::HistoryStage::kSingle, dt);
+      compare(batched, single, s.size(), "friction " + std::to_string(friction.friction) + " eps " +
+                                              std::to_string(friction.regularization_speed) + " step " +
+                                              std::to_string(step));
+      contacts += static_cast<long>(batched.contact_count());
+    }
+    EXPECT_GT(contacts, 5000);
+    EXPECT_GT(batched.verlet_list().builds(), 5);
+  }
+  // Ghosts: the last 60 slots are another rank's copies; the lists are caller-managed.
+  const auto model = frictional_model();
+  dem::ContactForceSettings settings;
+  settings.verlet_skin = 0.2;
+  settings.verlet_managed = true;
+  dem::ContactForceField batched(model, gas_box(), settings);
+  settings.batched = false;
+  dem::ContactForceField single(model, gas_box(), settings);
+  gw::ParticleStore s = granular_gas(17, true);
+  for (std::size_t i = s.size() - 60; i < s.size(); ++i) s.flags[i] |= gw::kGhost;
+  ASSERT_EQ(s.owned_size(), s.size() - 60);
+  for (auto* field : {&batched, &single}) {
+    field->build_list(s);
+    field->evaluate(s, dem::HistoryStage::kSingle, 1e-4);
+  }
+  EXPECT_GT(batched.contact_count(), 20u);
+  compare(batched, single, s.owned_size(), "with ghosts");
+
+  // Two spheres at rest pressed together, unregularised friction: no slip (|v_t| = 0) gives
+  // F_t = 0, not 0/0.
+  settings.batched = true;
+  dem::ContactForceField batched_rest(model, gas_box(), settings);
+  gw::ParticleStore rest;
+  rest.add(0, Vec3(2.0, 2.0, 2.0), Vec3::Zero(), Vec3::Zero(), 0.2, 1.0, 0.016);
+  rest.add(1, Vec3(2.3, 2.0, 2.0), Vec3::Zero(), Vec3::Zero(), 0.2, 1.0, 0.016);
+  batched_rest.build_list(rest);
+  batched_rest.evaluate(rest, dem::HistoryStage::kSingle, 1e-4);
+  ASSERT_EQ(batched_rest.contact_count(), 1u);
+  EXPECT_NEAR(batched_rest.force()[0].x(), -1e4 * 0.1, 1e-9);  // k δ, pushing 0 away from 1
+  EXPECT_EQ(batched_rest.force()[0].y(), 0.0);
+  EXPECT_EQ(batched_rest.force()[0].z(), 0.0);
+  EXPECT_EQ(batched_rest.torque()[0], Vec3::Zero());
+}
+
 // The fused pass (forces computed where a contact is found, no list) against the list of
 // contacts and the batched laws: bitwise the same forces, torques, count and deepest contact,
 // for both normal laws, with walls and a finite wall segment, through a granular gas.
