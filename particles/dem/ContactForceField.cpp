@@ -181,39 +181,6 @@ void ContactForceField::touch_history(const ParticleStore& store, Contact& c) {
                   : history_.touch(store.id[c.i], other);
 }
 
-template <class Normal, class Tangential>
-void ContactForceField::evaluate_fused(const ParticleStore& store, const Normal& normal,
-                                       const Tangential& tangential, HistoryStage stage, double dt) {
-  // The batched path adds the external forces first and then the contacts in list order, which
-  // is the order they are found in: the same sums in the same order here. A history law's
-  // entry is looked up and advanced where the contact is found; each contact uses its entry
-  // at once, so room can be made between contacts (entries move, none is held).
-  constexpr bool keeps_history = !std::is_same_v<Tangential, StaticFriction>;
-  if constexpr (keeps_history) history_.prepare();
-  external_forces(store);
-  auto contact_forces = [&](Contact& c) {
-    if constexpr (keeps_history) {
-      if (history_.nearly_full()) history_.make_room();
-      touch_history(store, c);
-    }
-    c.normal_force = normal.force(c);
-    if constexpr (keeps_history) advance_history(tangential, c, stage, dt);
-    else c.tangential_force = tangential.force(c);
-    note_depth(store, c);
-    apply(store, c);
-  };
-  if constexpr (std::is_same_v<Normal, LinearSpringDashpot> && std::is_same_v<Tangential, StaticFriction>) {
-    if (use_list_ && settings_.batched) {
-      add_listed_pairs_linear_static(store, normal, tangential);
-      Contact c;
-      for_each_wall_contact(store, c, contact_forces);
-      return;
-    }
-  }
-  constexpr bool reads_radius = Normal::kReadsEffectiveRadius || Tangential::kReadsEffectiveRadius;
-  for_each_contact<reads_radius>(store, contact_forces);
-}
-
 namespace {
 
 // Two contacts at a time in the two lanes of a vector (GCC/Clang vector extensions; SSE2 on
@@ -250,64 +217,183 @@ using Lanes = double __attribute__((vector_size(kLanes * sizeof(double))));
   return r;
 }
 
+/// Three components, one contact per lane.
+struct Lanes3 {
+  Lanes x, y, z;
+};
+[[gnu::always_inline]] inline Lanes dot(const Lanes3& a, const Lanes3& b) {  // Eigen's order
+  return a.x * b.x + a.y * b.y + a.z * b.z;
+}
+[[gnu::always_inline]] inline Lanes3 cross(const Lanes3& a, const Lanes3& b) {
+  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+[[gnu::always_inline]] inline Lanes3 scaled(Lanes s, const Lanes3& a) { return {s * a.x, s * a.y, s * a.z}; }
+[[gnu::always_inline]] inline Lanes3 minus(const Lanes3& a, const Lanes3& b) {
+  return {a.x - b.x, a.y - b.y, a.z - b.z};
+}
+/// Per lane, `when` ? a : b.
+template <class Mask>
+[[gnu::always_inline]] inline Lanes3 select(Mask when, const Lanes3& a, const Lanes3& b) {
+  return {when ? a.x : b.x, when ? a.y : b.y, when ? a.z : b.z};
+}
+/// rotate_into_plane per lane (its branches as selections).
+[[gnu::always_inline]] inline Lanes3 lanes_rotate_into_plane(const Lanes3& v, const Lanes3& normal) {
+  const Lanes length2 = dot(v, v);
+  const Lanes3 projected = minus(v, scaled(dot(v, normal), normal));
+  const Lanes projected2 = dot(projected, projected);
+  const Lanes3 rotated = scaled(lanes_sqrt(length2 / projected2), projected);
+  const Lanes zero{};
+  return select(length2 == 0.0, v, select(projected2 <= 1e-24 * length2, Lanes3{zero, zero, zero}, rotated));
+}
+
 /// Touching pairs of one batch, then their forces (structure of arrays).
 struct PairBatch {
   static constexpr int kSize = 64;  // a multiple of kLanes
   int count = 0;
-  std::uint32_t i[kSize], j[kSize];
+  std::uint32_t i[kSize], j[kSize];  // as listed
   alignas(64) double dx[kSize], dy[kSize], dz[kSize], distance2[kSize];
-  // Out: the force on i (on_i), n × F_t (lever), the overlap.
+  // History laws: -1 where the canonical orientation (touch_history) reverses the listed pair,
+  // else +1; and the pair's history entry.
+  alignas(64) double orientation[kSize];
+  ContactHistoryEntry* entry[kSize];
+  ContactHistoryEntry pad_entry;  ///< written by the lane that pads an odd batch (then unused)
+  // Out: the force on i (on_i), n × F_t (lever), the overlap; i and j of the oriented contact.
   alignas(64) double fx[kSize], fy[kSize], fz[kSize], lx[kSize], ly[kSize], lz[kSize], overlap[kSize];
+};
+
+/// What the lanes read of the store and the normal law.
+struct LaneInputs {
+  const Vec3* velocity;
+  const Vec3* angular_velocity;
+  const double* radius;
+  const double* inverse_mass;
+  double stiffness, damping_factor;
+};
+
+/// A lane pair's contact as particle_contact and LinearSpringDashpot::force compute it (in the
+/// listed orientation), operation for operation (Eigen's cross, dot and norm in their
+/// coefficient order).
+struct LaneContact {
+  Lanes3 normal, relative_velocity;
+  Lanes overlap, effective_mass, normal_speed, normal_force;
+};
+[[gnu::always_inline]] inline LaneContact lane_contact(const PairBatch& b, int l, const LaneInputs& in) {
+  const std::uint32_t* I = b.i + l;
+  const std::uint32_t* J = b.j + l;
+  LaneContact c;
+  const Lanes distance = lanes_sqrt(lanes_load(b.distance2 + l));
+  const Lanes inverse_distance = 1.0 / distance;
+  c.normal = {lanes_load(b.dx + l) * inverse_distance, lanes_load(b.dy + l) * inverse_distance,
+              lanes_load(b.dz + l) * inverse_distance};
+  const Lanes ri = gather(in.radius, I), rj = gather(in.radius, J);
+  c.overlap = ri + rj - distance;
+  const Lanes3 spin{ri * gather(in.angular_velocity, I, 0) + rj * gather(in.angular_velocity, J, 0),
+                    ri * gather(in.angular_velocity, I, 1) + rj * gather(in.angular_velocity, J, 1),
+                    ri * gather(in.angular_velocity, I, 2) + rj * gather(in.angular_velocity, J, 2)};
+  const Lanes3 velocity_difference{gather(in.velocity, J, 0) - gather(in.velocity, I, 0),
+                                   gather(in.velocity, J, 1) - gather(in.velocity, I, 1),
+                                   gather(in.velocity, J, 2) - gather(in.velocity, I, 2)};
+  c.relative_velocity = minus(velocity_difference, cross(spin, c.normal));
+  c.effective_mass = 1.0 / (gather(in.inverse_mass, I) + gather(in.inverse_mass, J));
+  c.normal_speed = dot(c.relative_velocity, c.normal);
+  const Lanes eta = in.damping_factor * lanes_sqrt(c.effective_mass * in.stiffness);
+  c.normal_force = in.stiffness * c.overlap - eta * c.normal_speed;
+  return c;
+}
+
+/// The lanes' forces as apply() forms them: on_i = F_t - f_n n and the lever n × F_t.
+[[gnu::always_inline]] inline void store_lane_forces(PairBatch& b, int l, const Lanes3& normal, Lanes normal_force,
+                                                     const Lanes3& tangential_force, Lanes overlap) {
+  const Lanes3 on_i = minus(tangential_force, scaled(normal_force, normal));
+  const Lanes3 lever = cross(normal, tangential_force);
+  lanes_store(b.fx + l, on_i.x);
+  lanes_store(b.fy + l, on_i.y);
+  lanes_store(b.fz + l, on_i.z);
+  lanes_store(b.lx + l, lever.x);
+  lanes_store(b.ly + l, lever.y);
+  lanes_store(b.lz + l, lever.z);
+  lanes_store(b.overlap + l, overlap);
+}
+
+/// StaticFriction::force per lane.
+struct StaticFrictionLanes {
+  double mu, regularization_speed;
+  explicit StaticFrictionLanes(const StaticFriction& law)
+      : mu(law.friction()), regularization_speed(law.regularization_speed()) {}
+  [[gnu::always_inline]] void operator()(PairBatch& b, int l, const LaneContact& c) const {
+    const Lanes3 vt = minus(c.relative_velocity, scaled(c.normal_speed, c.normal));
+    const Lanes speed = lanes_sqrt(dot(vt, vt));
+    const Lanes magnitude = mu * lanes_max(c.normal_force, Lanes{} + 0.0);
+    const Lanes scale = magnitude / lanes_max(speed, Lanes{} + regularization_speed);
+    const auto sliding = (speed != 0.0) & (magnitude != 0.0);  // else F_t = 0 exactly
+    const Lanes zero{};
+    store_lane_forces(b, l, c.normal, c.normal_force, select(sliding, scaled(scale, vt), Lanes3{zero, zero, zero}),
+                      c.overlap);
+  }
+};
+
+/// CoulombSpring with advance_history's kSingle stage (velocity Verlet) per lane, in the
+/// canonical orientation (touch_history), reading and writing the pairs' history entries.
+struct CoulombSpringLanes {
+  double stiffness, friction, damping_factor, half_dt;
+  CoulombSpringLanes(const CoulombSpring& law, double dt)
+      : stiffness(law.stiffness()), friction(law.friction()), damping_factor(law.damping_factor()),
+        half_dt(0.5 * dt) {}
+  [[gnu::always_inline]] void operator()(PairBatch& b, int l, const LaneContact& c) const {
+    // touch_history's reversal: -n and -v_ji (exact); v_ji · n is unchanged by it, bit for bit.
+    const Lanes orientation = lanes_load(b.orientation + l);
+    const Lanes3 normal = scaled(orientation, c.normal);
+    const Lanes3 relative_velocity = scaled(orientation, c.relative_velocity);
+    const Lanes3 vt = minus(relative_velocity, scaled(c.normal_speed, normal));
+    ContactHistoryEntry* const e0 = b.entry[l];
+    ContactHistoryEntry* const e1 = b.entry[l + 1];
+    const Lanes3 displacement{Lanes{e0->displacement.x(), e1->displacement.x()},
+                              Lanes{e0->displacement.y(), e1->displacement.y()},
+                              Lanes{e0->displacement.z(), e1->displacement.z()}};
+    const Lanes3 stage_velocity{Lanes{e0->stage_velocity.x(), e1->stage_velocity.x()},
+                                Lanes{e0->stage_velocity.y(), e1->stage_velocity.y()},
+                                Lanes{e0->stage_velocity.z(), e1->stage_velocity.z()}};
+    using Mask = decltype(Lanes{} < Lanes{});
+    const Mask is_new{e0->is_new ? -1 : 0, e1->is_new ? -1 : 0};
+    Lanes3 xi = lanes_rotate_into_plane(displacement, normal);
+    const Lanes3 vt_old = select(is_new, vt, lanes_rotate_into_plane(stage_velocity, normal));
+    const Lanes3 increment{half_dt * (vt_old.x + vt.x), half_dt * (vt_old.y + vt.y), half_dt * (vt_old.z + vt.z)};
+    xi = {xi.x + increment.x, xi.y + increment.y, xi.z + increment.z};
+    // coulomb_limited_spring
+    const Lanes damping = damping_factor * lanes_sqrt(c.effective_mass * stiffness);
+    Lanes3 force{stiffness * xi.x + damping * vt.x, stiffness * xi.y + damping * vt.y,
+                 stiffness * xi.z + damping * vt.z};
+    const Lanes limit = friction * lanes_max(c.normal_force, Lanes{} + 0.0);
+    const Lanes force2 = dot(force, force);
+    const auto slips = force2 > limit * limit;
+    if (slips[0] || slips[1]) [[unlikely]] {  // ~3 % of lane pairs in a dense flowing bed
+      const Lanes3 capped = scaled(limit / lanes_sqrt(force2), force);
+      const Lanes3 damping_part = scaled(damping, vt);
+      const Lanes3 slipped_xi{(capped.x - damping_part.x) / stiffness, (capped.y - damping_part.y) / stiffness,
+                              (capped.z - damping_part.z) / stiffness};
+      force = select(slips, capped, force);
+      xi = select(slips, slipped_xi, xi);
+    }
+    ContactHistoryEntry* const entries[kLanes] = {e0, e1};
+    for (int k = 0; k < kLanes; ++k) {
+      entries[k]->displacement = Vec3(xi.x[k], xi.y[k], xi.z[k]);
+      entries[k]->stage_velocity = Vec3(vt.x[k], vt.y[k], vt.z[k]);
+      entries[k]->is_new = false;
+    }
+    store_lane_forces(b, l, normal, c.normal_force, force, c.overlap);
+  }
 };
 
 }  // namespace
 
-void ContactForceField::add_listed_pairs_linear_static(const ParticleStore& store, const LinearSpringDashpot& normal,
-                                                       const StaticFriction& friction) {
-  const double stiffness = normal.stiffness(), damping_factor = normal.damping_factor();
-  const double mu = friction.friction(), regularization_speed = friction.regularization_speed();
-  const Vec3* velocity = store.velocity.data();
-  const Vec3* angular_velocity = store.angular_velocity.data();
+template <class TangentialLanes>
+void ContactForceField::add_listed_pairs_linear(const ParticleStore& store, const LinearSpringDashpot& normal,
+                                                const TangentialLanes& tangential) {
+  constexpr bool keeps_history = std::is_same_v<TangentialLanes, CoulombSpringLanes>;
+  const LaneInputs in{store.velocity.data(), store.angular_velocity.data(), store.radius.data(),
+                      inverse_mass_.data(), normal.stiffness(), normal.damping_factor()};
   const double* radius = store.radius.data();
-  const double* inverse_mass = inverse_mass_.data();
   PairBatch b;
-  // Each lane as particle_contact, LinearSpringDashpot::force, StaticFriction::force and apply
-  // compute it, operation for operation (Eigen's cross, dot and norm in their coefficient order).
-  auto compute = [&](int l) {
-    const std::uint32_t* I = b.i + l;
-    const std::uint32_t* J = b.j + l;
-    const Lanes distance = lanes_sqrt(lanes_load(b.distance2 + l));
-    const Lanes inverse_distance = 1.0 / distance;
-    const Lanes nx = lanes_load(b.dx + l) * inverse_distance, ny = lanes_load(b.dy + l) * inverse_distance,
-                nz = lanes_load(b.dz + l) * inverse_distance;
-    const Lanes ri = gather(radius, I), rj = gather(radius, J);
-    const Lanes overlap = ri + rj - distance;
-    const Lanes sx = ri * gather(angular_velocity, I, 0) + rj * gather(angular_velocity, J, 0);
-    const Lanes sy = ri * gather(angular_velocity, I, 1) + rj * gather(angular_velocity, J, 1);
-    const Lanes sz = ri * gather(angular_velocity, I, 2) + rj * gather(angular_velocity, J, 2);
-    const Lanes vx = (gather(velocity, J, 0) - gather(velocity, I, 0)) - (sy * nz - sz * ny);
-    const Lanes vy = (gather(velocity, J, 1) - gather(velocity, I, 1)) - (sz * nx - sx * nz);
-    const Lanes vz = (gather(velocity, J, 2) - gather(velocity, I, 2)) - (sx * ny - sy * nx);
-    const Lanes effective_mass = 1.0 / (gather(inverse_mass, I) + gather(inverse_mass, J));
-    const Lanes normal_speed = vx * nx + vy * ny + vz * nz;
-    const Lanes eta = damping_factor * lanes_sqrt(effective_mass * stiffness);
-    const Lanes normal_force = stiffness * overlap - eta * normal_speed;
-    const Lanes tx = vx - normal_speed * nx, ty = vy - normal_speed * ny, tz = vz - normal_speed * nz;
-    const Lanes speed = lanes_sqrt(tx * tx + ty * ty + tz * tz);
-    const Lanes magnitude = mu * lanes_max(normal_force, Lanes{} + 0.0);
-    const Lanes scale = magnitude / lanes_max(speed, Lanes{} + regularization_speed);
-    const auto sliding = (speed != 0.0) & (magnitude != 0.0);  // else F_t = 0 exactly
-    const Lanes zero{};
-    const Lanes ftx = sliding ? scale * tx : zero, fty = sliding ? scale * ty : zero,
-                ftz = sliding ? scale * tz : zero;
-    lanes_store(b.fx + l, ftx - normal_force * nx);
-    lanes_store(b.fy + l, fty - normal_force * ny);
-    lanes_store(b.fz + l, ftz - normal_force * nz);
-    lanes_store(b.lx + l, ny * ftz - nz * fty);
-    lanes_store(b.ly + l, nz * ftx - nx * ftz);
-    lanes_store(b.lz + l, nx * fty - ny * ftx);
-    lanes_store(b.overlap + l, overlap);
-  };
   auto flush = [&] {
     for (int k = b.count; k % kLanes != 0; ++k) {  // pad with a copy of the first contact
       b.i[k] = b.i[0];
@@ -316,12 +402,18 @@ void ContactForceField::add_listed_pairs_linear_static(const ParticleStore& stor
       b.dy[k] = b.dy[0];
       b.dz[k] = b.dz[0];
       b.distance2[k] = b.distance2[0];
+      if constexpr (keeps_history) {
+        b.orientation[k] = b.orientation[0];
+        b.entry[k] = &b.pad_entry;  // not the first contact's: it may have been advanced already
+      }
     }
-    for (int l = 0; l < b.count; l += kLanes) compute(l);
+    for (int l = 0; l < b.count; l += kLanes) tangential(b, l, lane_contact(b, l, in));
     Contact c;  // for note_depth
     c.is_wall = false;
     for (int k = 0; k < b.count; ++k) {
-      const std::uint32_t i = b.i[k], j = b.j[k];
+      std::uint32_t i = b.i[k], j = b.j[k];
+      if constexpr (keeps_history)
+        if (b.orientation[k] < 0.0) std::swap(i, j);
       const Vec3 on_i(b.fx[k], b.fy[k], b.fz[k]);
       const Vec3 lever(b.lx[k], b.ly[k], b.lz[k]);
       force_[i] += on_i;
@@ -335,10 +427,19 @@ void ContactForceField::add_listed_pairs_linear_static(const ParticleStore& stor
     }
     b.count = 0;
   };
+  const double* inverse_mass = inverse_mass_.data();
+  const std::int64_t* id = store.id.data();
   verlet_.for_each_touching_pair(store, [&](std::uint32_t i, std::uint32_t j, const Vec3& d, double distance2,
-                                            std::uint32_t) {
+                                            std::uint32_t list_index) {
     // The pairs particle_contact turns away (the list holds no pair of two ghosts).
     if (inverse_mass[i] + inverse_mass[j] == 0.0 || distance2 == 0.0) return;
+    if constexpr (keeps_history) {
+      // Entries move when room is made: the batch's entries are used up first.
+      if (history_.nearly_full()) {
+        if (b.count > 0) flush();
+        history_.make_room();
+      }
+    }
     const int k = b.count++;
     b.i[k] = i;
     b.j[k] = j;
@@ -346,9 +447,51 @@ void ContactForceField::add_listed_pairs_linear_static(const ParticleStore& stor
     b.dy[k] = d.y();
     b.dz[k] = d.z();
     b.distance2[k] = distance2;
+    if constexpr (keeps_history) {
+      const bool reversed = id[i] > id[j];
+      b.orientation[k] = reversed ? -1.0 : 1.0;
+      const std::int64_t first = reversed ? id[j] : id[i], second = reversed ? id[i] : id[j];
+      b.entry[k] = list_index < history_hints_.size() ? history_.touch(first, second, history_hints_[list_index])
+                                                      : history_.touch(first, second);
+    }
     if (b.count == PairBatch::kSize) flush();
   });
   if (b.count > 0) flush();
+}
+
+template <class Normal, class Tangential>
+void ContactForceField::evaluate_fused(const ParticleStore& store, const Normal& normal,
+                                       const Tangential& tangential, HistoryStage stage, double dt) {
+  // The batched path adds the external forces first and then the contacts in list order, which
+  // is the order they are found in: the same sums in the same order here. A history law's
+  // entry is looked up and advanced where the contact is found; each contact uses its entry
+  // at once, so room can be made between contacts (entries move, none is held).
+  constexpr bool keeps_history = !std::is_same_v<Tangential, StaticFriction>;
+  if constexpr (keeps_history) history_.prepare();
+  external_forces(store);
+  auto contact_forces = [&](Contact& c) {
+    if constexpr (keeps_history) {
+      if (history_.nearly_full()) history_.make_room();
+      touch_history(store, c);
+    }
+    c.normal_force = normal.force(c);
+    if constexpr (keeps_history) advance_history(tangential, c, stage, dt);
+    else c.tangential_force = tangential.force(c);
+    note_depth(store, c);
+    apply(store, c);
+  };
+  if constexpr (std::is_same_v<Normal, LinearSpringDashpot> &&
+                (std::is_same_v<Tangential, StaticFriction> || std::is_same_v<Tangential, CoulombSpring>)) {
+    if (use_list_ && settings_.batched && (!keeps_history || stage == HistoryStage::kSingle)) {
+      if constexpr (keeps_history) add_listed_pairs_linear(store, normal, CoulombSpringLanes(tangential, dt));
+      else add_listed_pairs_linear(store, normal, StaticFrictionLanes(tangential));
+      Contact c;
+      for_each_wall_contact(store, c, contact_forces);
+      return;
+    }
+  }
+  constexpr bool reads_radius = Normal::kReadsEffectiveRadius || Tangential::kReadsEffectiveRadius;
+  for_each_contact<reads_radius>(store, contact_forces);
 }
 
 template <class Normal>

@@ -7,9 +7,10 @@
 // under gravity alone settles at the terminal speed v_term.
 // This class owns the loops and scratch memory; the laws own the pointwise physics. Nothing is
 // allocated per evaluation once the contact list has reached its working size.
-// For the linear spring–dashpot with static friction on a Verlet list (the curtain and channel
-// cases), the listed pairs are evaluated two at a time in SIMD lanes (settings().batched), with
-// the same arithmetic per contact and the forces added in the same order: bitwise the same.
+// For the linear spring–dashpot with static friction or the Coulomb spring on a Verlet list
+// (the curtain and channel cases), the listed pairs are evaluated two at a time in SIMD lanes
+// (settings().batched), with the same arithmetic per contact and the forces added in the same
+// order: bitwise the same.
 //
 // Ghosts (domain decomposition, particles/dem/SlabDecomposition): copies of other ranks'
 // particles, flagged kGhost, at the end of the store. A pair of two ghosts is skipped (another
@@ -77,8 +78,9 @@ struct ContactForceSettings {
   /// (bitwise the same forces and history: the same arithmetic, added in the same order).
   /// false keeps the list (contacts()) for every law.
   bool fused = true;
-  /// With the fused pass, a Verlet list, the linear spring–dashpot and static friction, the
-  /// listed pairs' forces are computed two at a time in SIMD lanes (bitwise the same).
+  /// With the fused pass, a Verlet list, the linear spring–dashpot and static friction or the
+  /// Coulomb spring (velocity Verlet), the listed pairs' forces are computed two at a time in
+  /// SIMD lanes (bitwise the same).
   bool batched = true;
   /// Particle count that sizes the cell grid (LinkedCells::build); 0: the store's size. A
   /// domain-decomposed run sets the global count so that every rank uses the serial grid.
@@ -143,11 +145,14 @@ class ContactForceField {
   template <class ContactFunction>
   void for_each_wall_contact(const ParticleStore& store, Contact& c, ContactFunction&& f);
   /// The fused pass's listed particle pairs for the linear spring–dashpot with static friction
-  /// (the laws of the curtain and channel cases), two contacts at a time in SIMD lanes: the
-  /// same operations per contact as the contact-by-contact pass, and the forces added and the
-  /// contacts counted in the same order, so every result is the same to the bit.
-  void add_listed_pairs_linear_static(const ParticleStore& store, const LinearSpringDashpot& normal,
-                                      const StaticFriction& friction);
+  /// or (velocity Verlet's single stage) the Coulomb spring with history, the laws of the
+  /// curtain and channel cases, two contacts at a time in SIMD lanes (TangentialLanes, in the
+  /// .cpp): the same operations per contact as the contact-by-contact pass, and the forces added,
+  /// the contacts counted and the history entries written in the same order, so every result is
+  /// the same to the bit.
+  template <class TangentialLanes>
+  void add_listed_pairs_linear(const ParticleStore& store, const LinearSpringDashpot& normal,
+                               const TangentialLanes& tangential);
   /// The contact of i with particle j (d = x_j - x_i, |d|^2), false if they cannot interact.
   template <bool kWithEffectiveRadius>
   bool particle_contact(const ParticleStore& store, std::uint32_t i, std::uint32_t j, const Vec3& d,

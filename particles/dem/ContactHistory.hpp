@@ -106,7 +106,9 @@ class ContactHistory {
   std::vector<ContactHistoryEntry> spare_;
   std::size_t occupied_ = 0;  ///< non-empty slots, live or stale
   std::uint64_t id_span_ = 0;  ///< one past the largest particle id keyed so far
-  std::uint64_t stride_ = 4;   ///< slots between the homes of consecutive ids
+  static constexpr int kStrideShift = 16;
+  /// Slots between the homes of consecutive ids, in units of 2^-kStrideShift slot.
+  std::uint64_t stride_ = std::uint64_t{4} << kStrideShift;
   std::int64_t step_ = 0;
 };
 

@@ -27,6 +27,10 @@ class CoulombSpring final : public TangentialLaw {
                                   tangential_velocity, displacement);
   }
 
+  double stiffness() const { return stiffness_; }
+  double friction() const { return friction_; }
+  double damping_factor() const { return damping_factor_; }
+
   bool needs_history() const override { return true; }
   void evaluate(std::span<Contact> contacts, HistoryStage stage, double dt) const override {
     evaluate_with_history(*this, contacts, stage, dt);

@@ -453,3 +453,74 @@ TEST(ContactForceField, FusedHistoryPassEqualsTheListOfContactsBitwise) {
       EXPECT_GT(loaded, 5);  // live springs at the end: the history mattered
     }
 }
+
+// The Coulomb spring with history on a Verlet list is also computed two pairs at a time in
+// lanes (velocity Verlet's single stage). Two identical simulations, one batched and one
+// contact by contact, each driving its own particles: after every step bitwise the same
+// positions, velocities, forces and torques, and the same live history entries (pair, last
+// touch, stored displacement, stage velocity). Through a fast spinning gas in a box periodic
+// on all axes with fixed particles, with and without tangential damping, and with friction low
+// enough that contacts slip (the rare lane branch) and high enough that they stick.
+TEST(ContactForceField, BatchedCoulombSpringEqualsTheContactByContactPassBitwise) {
+  struct Tangential {
+    double friction, damping_factor;
+  };
+  for (const Tangential law : {Tangential{0.1, 0.0}, Tangential{0.3, 0.5}, Tangential{5.0, 0.5}}) {
+    const auto model = dem::make_contact_model(
+        "linear_spring_dashpot", {{"stiffness", 1e4}, {"restitution", 0.8}}, "coulomb_spring",
+        {{"stiffness", 3e3}, {"friction", law.friction}, {"damping_factor", law.damping_factor}});
+    gw::Domain domain;
+    domain.hi = Vec3(5.0, 5.0, 5.0);  // periodic on every axis
+    dem::ContactForceSettings settings;
+    settings.gravity = Vec3(0.0, -1.0, 0.0);
+    settings.verlet_skin = 0.2;
+    dem::ContactForceField batched(model, domain, settings);
+    settings.batched = false;
+    dem::ContactForceField single(model, domain, settings);
+    gw::ParticleStore a = granular_gas(19, true);
+    for (auto& v : a.velocity) v *= 3.0;
+    for (std::size_t i = 0; i < a.size(); i += 10) a.flags[i] |= gw::kFixed;
+    gw::ParticleStore b = a;
+    dem::VelocityVerlet verlet_a, verlet_b;
+    const double dt = dem::stable_time_step(a, *model.normal, 50);
+    std::vector<dem::ContactHistoryEntry> entries_a, entries_b;
+    auto by_pair = [](const dem::ContactHistoryEntry& x, const dem::ContactHistoryEntry& y) {
+      return std::tie(x.first, x.second) < std::tie(y.first, y.second);
+    };
+    long contacts = 0, stored = 0;
+    for (int step = 0; step < 1000; ++step) {
+      verlet_a.step(a, batched, dt);
+      verlet_b.step(b, single, dt);
+      const std::string where = "friction " + std::to_string(law.friction) + " damping " +
+                                std::to_string(law.damping_factor) + " step " + std::to_string(step);
+      ASSERT_EQ(batched.contact_count(), single.contact_count()) << where;
+      for (std::size_t i = 0; i < a.size(); ++i) {
+        ASSERT_EQ(a.position[i], b.position[i]) << where << " particle " << i;
+        ASSERT_EQ(a.velocity[i], b.velocity[i]) << where << " particle " << i;
+        ASSERT_EQ(a.angular_velocity[i], b.angular_velocity[i]) << where << " particle " << i;
+        ASSERT_EQ(batched.force()[i], single.force()[i]) << where << " particle " << i;
+        ASSERT_EQ(batched.torque()[i], single.torque()[i]) << where << " particle " << i;
+      }
+      batched.history().live_entries(entries_a);
+      single.history().live_entries(entries_b);
+      ASSERT_EQ(entries_a.size(), entries_b.size()) << where;
+      std::sort(entries_a.begin(), entries_a.end(), by_pair);
+      std::sort(entries_b.begin(), entries_b.end(), by_pair);
+      for (std::size_t k = 0; k < entries_a.size(); ++k) {
+        const auto& x = entries_a[k];
+        const auto& y = entries_b[k];
+        ASSERT_EQ(std::tie(x.first, x.second, x.last_step, x.is_new), std::tie(y.first, y.second, y.last_step, y.is_new))
+            << where << " entry " << k;
+        ASSERT_EQ(x.displacement, y.displacement) << where << " pair " << x.first << "-" << x.second;
+        ASSERT_EQ(x.stage_velocity, y.stage_velocity) << where << " pair " << x.first << "-" << x.second;
+        stored += x.displacement.squaredNorm() > 0.0 ? 1 : 0;
+      }
+      contacts += static_cast<long>(batched.contact_count());
+    }
+    std::printf("coulomb spring mu %.1f damping %.1f: %ld contacts, %ld stored springs, %ld builds\n",
+                law.friction, law.damping_factor, contacts, stored, batched.verlet_list().builds());
+    EXPECT_GT(contacts, 5000);
+    EXPECT_GT(stored, 1000);
+    EXPECT_GT(batched.verlet_list().builds(), 5);
+  }
+}
