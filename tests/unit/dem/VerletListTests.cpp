@@ -63,20 +63,45 @@ double worst_force_difference(const dem::ContactForceField& cells, const dem::Co
   return worst;
 }
 
+/// Under gravity with a Verlet list of skin 0.2; `flag` (fused or batched) set to `value`.
+dem::ContactForceSettings listed_settings(bool dem::ContactForceSettings::*flag, bool value) {
+  dem::ContactForceSettings s;
+  s.gravity = Vec3(0.0, -1.0, 0.0);
+  s.verlet_skin = 0.2;
+  s.*flag = value;
+  return s;
+}
+
 /// One contact model evaluated two ways, under gravity with a Verlet list: the fused pass (the
 /// default) and the batched one that keeps the list of contacts.
 struct FusedAndListed {
   dem::ContactForceField fused, listed;
   FusedAndListed(const dem::ContactModel& model, const gw::Domain& domain)
-      : fused(model, domain, settings(true)), listed(model, domain, settings(false)) {}
-  static dem::ContactForceSettings settings(bool fused) {
-    dem::ContactForceSettings s;
-    s.gravity = Vec3(0.0, -1.0, 0.0);
-    s.verlet_skin = 0.2;
-    s.fused = fused;
-    return s;
+      : fused(model, domain, listed_settings(&dem::ContactForceSettings::fused, true)),
+        listed(model, domain, listed_settings(&dem::ContactForceSettings::fused, false)) {}
+};
+
+/// One contact model on a Verlet list in a box periodic on every axis (pairs with and without
+/// the minimum image), under gravity: listed pairs computed in lanes, and contact by contact.
+struct BatchedAndSingle {
+  dem::ContactForceField batched, single;
+  explicit BatchedAndSingle(const dem::ContactModel& model)
+      : batched(model, periodic_box(), listed_settings(&dem::ContactForceSettings::batched, true)),
+        single(model, periodic_box(), listed_settings(&dem::ContactForceSettings::batched, false)) {}
+  static gw::Domain periodic_box() {
+    gw::Domain domain;
+    domain.hi = Vec3(5.0, 5.0, 5.0);
+    return domain;
   }
 };
+
+/// granular_gas(seed, spinning) at three times the speed, every tenth particle fixed.
+gw::ParticleStore fast_gas_with_fixed(unsigned seed) {
+  gw::ParticleStore s = granular_gas(seed, true);
+  for (auto& v : s.velocity) v *= 3.0;
+  for (std::size_t i = 0; i < s.size(); i += 10) s.flags[i] |= gw::kFixed;
+  return s;
+}
 
 }  // namespace
 
@@ -183,17 +208,9 @@ TEST(ContactForceField, BatchedLanesEqualTheContactByContactPassBitwise) {
     const auto model = dem::make_contact_model(
         "linear_spring_dashpot", {{"stiffness", 1e4}, {"restitution", 0.8}}, "static_friction",
         {{"friction", friction.friction}, {"regularization_speed", friction.regularization_speed}});
-    gw::Domain domain;
-    domain.hi = Vec3(5.0, 5.0, 5.0);  // periodic on every axis
-    dem::ContactForceSettings settings;
-    settings.gravity = Vec3(0.0, -1.0, 0.0);
-    settings.verlet_skin = 0.2;
-    dem::ContactForceField batched(model, domain, settings);
-    settings.batched = false;
-    dem::ContactForceField single(model, domain, settings);
-    gw::ParticleStore s = granular_gas(13, true);
-    for (auto& v : s.velocity) v *= 3.0;
-    for (std::size_t i = 0; i < s.size(); i += 10) s.flags[i] |= gw::kFixed;
+    BatchedAndSingle fields(model);
+    auto& [batched, single] = fields;
+    gw::ParticleStore s = fast_gas_with_fixed(13);
     dem::VelocityVerlet verlet;
     const double dt = dem::stable_time_step(s, *model.normal, 50);
     long contacts = 0;
@@ -469,17 +486,9 @@ TEST(ContactForceField, BatchedCoulombSpringEqualsTheContactByContactPassBitwise
     const auto model = dem::make_contact_model(
         "linear_spring_dashpot", {{"stiffness", 1e4}, {"restitution", 0.8}}, "coulomb_spring",
         {{"stiffness", 3e3}, {"friction", law.friction}, {"damping_factor", law.damping_factor}});
-    gw::Domain domain;
-    domain.hi = Vec3(5.0, 5.0, 5.0);  // periodic on every axis
-    dem::ContactForceSettings settings;
-    settings.gravity = Vec3(0.0, -1.0, 0.0);
-    settings.verlet_skin = 0.2;
-    dem::ContactForceField batched(model, domain, settings);
-    settings.batched = false;
-    dem::ContactForceField single(model, domain, settings);
-    gw::ParticleStore a = granular_gas(19, true);
-    for (auto& v : a.velocity) v *= 3.0;
-    for (std::size_t i = 0; i < a.size(); i += 10) a.flags[i] |= gw::kFixed;
+    BatchedAndSingle fields(model);
+    auto& [batched, single] = fields;
+    gw::ParticleStore a = fast_gas_with_fixed(19);
     gw::ParticleStore b = a;
     dem::VelocityVerlet verlet_a, verlet_b;
     const double dt = dem::stable_time_step(a, *model.normal, 50);
