@@ -176,9 +176,11 @@ void ContactForceField::touch_history(const ParticleStore& store, Contact& c) {
     c.relative_velocity = -c.relative_velocity;
   }
   const std::int64_t other = c.is_wall ? ContactHistory::wall_key(c.partner) : store.id[c.partner];
-  c.history = c.list_index < history_hints_.size()
-                  ? history_.touch(store.id[c.i], other, history_hints_[c.list_index])
-                  : history_.touch(store.id[c.i], other);
+  c.history = touch_listed_history(store.id[c.i], other, c.list_index);
+}
+
+ContactHistoryEntry* ContactForceField::touch_listed_history(std::int64_t a, std::int64_t b, std::uint32_t list_index) {
+  return list_index < history_hints_.size() ? history_.touch(a, b, history_hints_[list_index]) : history_.touch(a, b);
 }
 
 namespace {
@@ -317,6 +319,7 @@ struct LaneContact {
 
 /// StaticFriction::force per lane.
 struct StaticFrictionLanes {
+  static constexpr bool kKeepsHistory = false;
   double mu, regularization_speed;
   explicit StaticFrictionLanes(const StaticFriction& law)
       : mu(law.friction()), regularization_speed(law.regularization_speed()) {}
@@ -335,6 +338,7 @@ struct StaticFrictionLanes {
 /// CoulombSpring with advance_history's kSingle stage (velocity Verlet) per lane, in the
 /// canonical orientation (touch_history), reading and writing the pairs' history entries.
 struct CoulombSpringLanes {
+  static constexpr bool kKeepsHistory = true;  // reads b.orientation and b.entry
   double stiffness, friction, damping_factor, half_dt;
   CoulombSpringLanes(const CoulombSpring& law, double dt)
       : stiffness(law.stiffness()), friction(law.friction()), damping_factor(law.damping_factor()),
@@ -389,7 +393,7 @@ struct CoulombSpringLanes {
 template <class TangentialLanes>
 void ContactForceField::add_listed_pairs_linear(const ParticleStore& store, const LinearSpringDashpot& normal,
                                                 const TangentialLanes& tangential) {
-  constexpr bool keeps_history = std::is_same_v<TangentialLanes, CoulombSpringLanes>;
+  constexpr bool keeps_history = TangentialLanes::kKeepsHistory;
   const LaneInputs in{store.velocity.data(), store.angular_velocity.data(), store.radius.data(),
                       inverse_mass_.data(), normal.stiffness(), normal.damping_factor()};
   const double* radius = store.radius.data();
@@ -451,8 +455,7 @@ void ContactForceField::add_listed_pairs_linear(const ParticleStore& store, cons
       const bool reversed = id[i] > id[j];
       b.orientation[k] = reversed ? -1.0 : 1.0;
       const std::int64_t first = reversed ? id[j] : id[i], second = reversed ? id[i] : id[j];
-      b.entry[k] = list_index < history_hints_.size() ? history_.touch(first, second, history_hints_[list_index])
-                                                      : history_.touch(first, second);
+      b.entry[k] = touch_listed_history(first, second, list_index);
     }
     if (b.count == PairBatch::kSize) flush();
   });

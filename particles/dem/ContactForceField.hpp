@@ -166,6 +166,9 @@ class ContactForceField {
   void note_depth(const ParticleStore& store, const Contact& c);
   /// Puts a particle contact in the canonical orientation and sets its history entry.
   void touch_history(const ParticleStore& store, Contact& c);
+  /// The entry of (a, b) (canonical order) for Verlet-list pair `list_index` (kNotListed: none),
+  /// looked up through that pair's hint, which it updates.
+  ContactHistoryEntry* touch_listed_history(std::int64_t a, std::int64_t b, std::uint32_t list_index);
   /// One pass: every contact's forces computed (its history looked up and advanced) and added
   /// where it is found.
   template <class Normal, class Tangential>
