@@ -66,7 +66,7 @@ void run_bed(benchmark::State& state, const std::string& tangential, const dem::
   state.counters["particle_steps_per_s"] =
       benchmark::Counter(n * static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
   const double history_bytes =
-      static_cast<double>(field.history().capacity() * dem::ContactHistory::bytes_per_entry()) / n;
+      static_cast<double>(field.history().bytes()) / n;  // table, spare and pinned data
   // Scratch held by the force field and integrator: contact list, force/torque, Verlet's old
   // forces, inverse masses, cell sort (slot, cell, packed position+radius); with a Verlet list
   // also its pairs, reference positions and ids.

@@ -105,8 +105,7 @@ void run(const std::string& tangential, const dem::LawParameters& parameters, in
   const double migrations = static_cast<double>(mpi::sum(migrated)) / steps;
   const std::string name = tangential + (skin > 0 ? "+list" : "");
   const double history_bytes =
-      static_cast<double>(mpi::sum(static_cast<std::int64_t>(field.history().capacity())) *
-                          static_cast<std::int64_t>(dem::ContactHistory::bytes_per_entry())) / total;
+      static_cast<double>(mpi::sum(static_cast<std::int64_t>(field.history().bytes()))) / total;
   const double bytes = static_cast<double>(gw::ParticleStore::bytes_per_particle()) + history_bytes +
                        (static_cast<double>(field.contacts().capacity() * sizeof(dem::Contact)) * ranks) / total +
                        4 * sizeof(Vec3) + sizeof(double) + 2 * sizeof(std::uint32_t) + 4 * sizeof(double);

@@ -180,7 +180,7 @@ void ContactForceField::touch_history(const ParticleStore& store, Contact& c) {
 }
 
 ContactHistoryEntry* ContactForceField::touch_listed_history(std::int64_t a, std::int64_t b, std::uint32_t list_index) {
-  return list_index < history_hints_.size() ? history_.touch(a, b, history_hints_[list_index]) : history_.touch(a, b);
+  return list_index < history_.pinned_count() ? history_.touch_pinned(list_index, a, b) : history_.touch(a, b);
 }
 
 namespace {
@@ -581,9 +581,16 @@ void ContactForceField::evaluate(const ParticleStore& store, HistoryStage stage,
     } else if (verlet_.stale(store, domain_)) {
       verlet_.build(store, domain_, search_cell_width(store, skin), skin);
     }
-    if (use_list_ && model_.tangential->needs_history() && history_hints_build_ != verlet_.builds()) {
-      history_hints_.assign(verlet_.pair_count(), Contact::kNotListed);  // no hint: probe
-      history_hints_build_ = verlet_.builds();
+    if (use_list_ && model_.tangential->needs_history() &&
+        (pinned_build_ != verlet_.builds() || pinned_generation_ != history_.pin_generation())) {
+      pin_keys_.resize(verlet_.pair_count());
+      for (std::size_t k = 0; k < pin_keys_.size(); ++k) {
+        const auto [i, j] = verlet_.pair(k);
+        pin_keys_[k] = {store.id[i], store.id[j]};
+      }
+      history_.pin(pin_keys_);
+      pinned_build_ = verlet_.builds();
+      pinned_generation_ = history_.pin_generation();
     }
     if (settings_.fused) {
       if (const auto* law = dynamic_cast<const LinearSpringDashpot*>(model_.normal.get());

@@ -166,8 +166,8 @@ class ContactForceField {
   void note_depth(const ParticleStore& store, const Contact& c);
   /// Puts a particle contact in the canonical orientation and sets its history entry.
   void touch_history(const ParticleStore& store, Contact& c);
-  /// The entry of (a, b) (canonical order) for Verlet-list pair `list_index` (kNotListed: none),
-  /// looked up through that pair's hint, which it updates.
+  /// The entry of (a, b) (canonical order) for Verlet-list pair `list_index` (kNotListed: none):
+  /// the pinned one at that position (ContactHistory::pin) when the list's pairs are pinned.
   ContactHistoryEntry* touch_listed_history(std::int64_t a, std::int64_t b, std::uint32_t list_index);
   /// One pass: every contact's forces computed (its history looked up and advanced) and added
   /// where it is found.
@@ -192,10 +192,11 @@ class ContactForceField {
   LinkedCells cells_;
   VerletList verlet_;
   ContactHistory history_;
-  /// Per Verlet-list pair, the history slot its contact had last (ContactHistory::touch with a
-  /// hint), for the list of build number history_hints_build_.
-  std::vector<std::uint32_t> history_hints_;
-  long history_hints_build_ = -1;
+  /// The list build and history pin generation at which the listed pairs were pinned in
+  /// history_ (at their list positions, so the fused pass walks their entries in list order).
+  long pinned_build_ = -1;
+  std::uint64_t pinned_generation_ = 0;
+  std::vector<std::pair<std::int64_t, std::int64_t>> pin_keys_;  ///< scratch of the pin
   std::vector<Contact> contacts_;
   std::size_t contact_count_ = 0;
   DeepestContact deepest_;

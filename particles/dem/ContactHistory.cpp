@@ -36,9 +36,13 @@ void ContactHistory::prepare() {
 }
 
 void ContactHistory::make_room() {
-  const std::size_t live = live_count();
+  // What the rehash keeps: live entries and pinned pairs' records (live or not).
+  const auto kept = static_cast<std::size_t>(std::count_if(
+      slots_.begin(), slots_.end(), [this](const ContactHistoryEntry& e) {
+        return e.last_step >= 0 && (e.pinned != ContactHistoryEntry::kNotPinned || live(e));
+      }));
   std::size_t capacity = std::max<std::size_t>(slots_.size(), 64);
-  while (2 * (live + 1) > capacity) capacity *= 2;
+  while (2 * (kept + 1) > capacity) capacity *= 2;
   rehash(capacity);
 }
 
@@ -48,7 +52,8 @@ void ContactHistory::rehash(std::size_t new_capacity) {
   std::swap(slots_, spare_);
   occupied_ = 0;
   for (const ContactHistoryEntry& e : spare_) {
-    if (e.last_step < 0 || !live(e)) continue;
+    // A pinned pair's record stays while it is pinned: its data is at its position.
+    if (e.last_step < 0 || (e.pinned == ContactHistoryEntry::kNotPinned && !live(e))) continue;
     std::size_t k = home(e.first, e.second);
     while (slots_[k].last_step >= 0) k = (k + 1) & (slots_.size() - 1);
     slots_[k] = e;
@@ -67,9 +72,56 @@ ContactHistoryEntry* ContactHistory::touch(std::int64_t a, std::int64_t b) {
       ++occupied_;
       return &e;
     }
-    if (e.first == a && e.second == b) return renew(e);
+    if (e.first == a && e.second == b) return renew(data(e));
     k = (k + 1) & (slots_.size() - 1);
   }
+}
+
+ContactHistoryEntry* ContactHistory::record(std::int64_t a, std::int64_t b) {
+  if (slots_.empty()) return nullptr;
+  std::size_t k = home(a, b);
+  while (slots_[k].last_step >= 0) {
+    if (slots_[k].first == a && slots_[k].second == b) return &slots_[k];
+    k = (k + 1) & (slots_.size() - 1);
+  }
+  return nullptr;
+}
+
+void ContactHistory::unpin() {
+  for (ContactHistoryEntry& slot : slots_) {
+    if (slot.last_step < 0 || slot.pinned == ContactHistoryEntry::kNotPinned) continue;
+    slot = pinned_[slot.pinned];  // pinned data always has last_step >= 0 once it has a record
+    slot.pinned = ContactHistoryEntry::kNotPinned;
+  }
+  pinned_.clear();
+}
+
+void ContactHistory::pin(std::span<const std::pair<std::int64_t, std::int64_t>> keys) {
+  unpin();
+  ++pin_generation_;
+  pinned_.resize(keys.size());
+  for (std::size_t k = 0; k < keys.size(); ++k) {
+    auto [a, b] = keys[k];
+    if (a > b) std::swap(a, b);
+    ContactHistoryEntry& d = pinned_[k];
+    d = ContactHistoryEntry{a, b, -1, Vec3::Zero(), Vec3::Zero(), true};
+    ContactHistoryEntry* slot = record(a, b);
+    if (slot == nullptr || slot->pinned != ContactHistoryEntry::kNotPinned) continue;  // none, or listed twice
+    d = *slot;
+    slot->pinned = static_cast<std::uint32_t>(k);
+  }
+}
+
+ContactHistoryEntry* ContactHistory::touch_unassigned_pin(std::size_t position, std::int64_t a, std::int64_t b) {
+  ContactHistoryEntry& d = pinned_[position];
+  if (d.first != a || d.second != b) return touch(a, b);  // another pair's position
+  ContactHistoryEntry* e = touch(a, b);  // the pair's data, its record inserted if new
+  if (e < slots_.data() || e >= slots_.data() + slots_.size()) return e;  // pinned elsewhere (listed twice)
+  // The record holds the data (a new pair, or one stored by another path since the pin): the
+  // data moves here and the record points to it.
+  d = *e;
+  e->pinned = static_cast<std::uint32_t>(position);
+  return &d;
 }
 
 const ContactHistoryEntry* ContactHistory::find(std::int64_t a, std::int64_t b) const {
@@ -78,7 +130,7 @@ const ContactHistoryEntry* ContactHistory::find(std::int64_t a, std::int64_t b) 
   std::size_t k = home(a, b);
   while (slots_[k].last_step >= 0) {
     const ContactHistoryEntry& e = slots_[k];
-    if (e.first == a && e.second == b) return live(e) ? &e : nullptr;
+    if (e.first == a && e.second == b) return live(data(e)) ? &data(e) : nullptr;
     k = (k + 1) & (slots_.size() - 1);
   }
   return nullptr;
@@ -98,14 +150,14 @@ double ContactHistory::mean_probe_length() const {
 std::size_t ContactHistory::live_count() const {
   return static_cast<std::size_t>(std::count_if(
       slots_.begin(), slots_.end(), [this](const ContactHistoryEntry& e) {
-        return e.last_step >= 0 && live(e);
+        return e.last_step >= 0 && live(data(e));
       }));
 }
 
 void ContactHistory::live_entries(std::vector<ContactHistoryEntry>& out) const {
   out.clear();
   for (const ContactHistoryEntry& e : slots_)
-    if (e.last_step >= 0 && live(e)) out.push_back(e);
+    if (e.last_step >= 0 && live(data(e))) out.push_back(data(e));
 }
 
 void ContactHistory::live_entries_of(const std::vector<std::int64_t>& sorted_ids,
@@ -115,7 +167,7 @@ void ContactHistory::live_entries_of(const std::vector<std::int64_t>& sorted_ids
     return std::binary_search(sorted_ids.begin(), sorted_ids.end(), id);
   };
   for (const ContactHistoryEntry& e : slots_)
-    if (e.last_step >= 0 && live(e) && (listed(e.first) || listed(e.second))) out.push_back(e);
+    if (e.last_step >= 0 && live(data(e)) && (listed(e.first) || listed(e.second))) out.push_back(data(e));
 }
 
 void ContactHistory::adopt(const ContactHistoryEntry& entry) {
@@ -131,12 +183,21 @@ void ContactHistory::adopt(const ContactHistoryEntry& entry) {
   while (slots_[k].last_step >= 0 &&
          !(slots_[k].first == entry.first && slots_[k].second == entry.second))
     k = (k + 1) & (slots_.size() - 1);
-  if (slots_[k].last_step < 0) ++occupied_;
-  slots_[k] = entry;
+  ContactHistoryEntry& slot = slots_[k];
+  if (slot.last_step < 0) {
+    ++occupied_;
+    slot.pinned = ContactHistoryEntry::kNotPinned;
+  }
+  const std::uint32_t pinned = slot.pinned;
+  data(slot) = entry;
+  data(slot).pinned = ContactHistoryEntry::kNotPinned;
+  slot.pinned = pinned;  // a pinned pair's record keeps pointing to its data
 }
 
 void ContactHistory::restore(std::int64_t step, const std::vector<ContactHistoryEntry>& entries) {
   step_ = step;
+  pinned_.clear();
+  ++pin_generation_;
   std::size_t capacity = 64;
   while (2 * (entries.size() + 1) > capacity) capacity *= 2;
   for (const ContactHistoryEntry& e : entries) note_key(e.first, e.second);

@@ -1338,14 +1338,14 @@ void DemSystem::report(io::Json& counts, io::Json& metrics, double step_wall_s, 
 
 std::size_t DemSystem::memory_bytes() const {
   // State + last good copy, the integrator's and the force field's per-particle arrays, the
-  // contact list and the history table.
+  // contact list and the history (its table, the table's spare for purges, the pinned data).
   const std::size_t n = store_.size();
   // The Verlet list: its pairs, and a reference position and id per slot.
   const std::size_t list = field_->verlet_list().pair_count() * 2 * sizeof(std::uint32_t) +
                            field_->verlet_list().reference().size() * (sizeof(Vec3) + sizeof(std::int64_t));
   return 2 * n * ParticleStore::bytes_per_particle() + 4 * n * sizeof(Vec3) * 2 + list +
          n * (2 * sizeof(Vec3) + sizeof(double)) + field_->contacts().capacity() * sizeof(Contact) +
-         2 * field_->history().capacity() * ContactHistory::bytes_per_entry();
+         field_->history().bytes();
 }
 
 std::string DemSystem::progress_note() const {

@@ -84,6 +84,10 @@ class VerletList {
   const std::vector<Vec3>& reference() const { return reference_; }
 
   std::size_t pair_count() const { return pairs_.size(); }
+  /// The slots (i, j) of listed pair k.
+  std::pair<std::uint32_t, std::uint32_t> pair(std::size_t k) const {
+    return {pairs_[k].first, pairs_[k].second & kSlotMask};
+  }
   long builds() const { return builds_; }
   double skin() const { return skin_; }
 

@@ -226,42 +226,89 @@ TEST(ContactHistory, LookupsStayShortForDenseIdsAndWallContacts) {
   EXPECT_GT(history.live_count(), static_cast<std::size_t>(3 * n));
 }
 
-// A Verlet list keeps one hint per pair (the slot its entry had last). Whatever the hint, the
-// entry returned must be the pair's own, the one the probe finds: right after the hint was
-// set, after a purge moved every entry, and with a hint that names another pair's slot.
-TEST(ContactHistory, HintedTouchReturnsThePairsOwnEntryWhateverTheHint) {
+// A Verlet list pins its pairs (ContactHistory::pin): each pair's data sits at its list
+// position. Whatever the position holds, touch_pinned() must return the pair's own entry, the
+// one find() sees, with the data it had: pairs with an entry before the pin, new pairs, a pair
+// listed twice, a position asked for another pair, after purges that move the records, after
+// a step without a touch (stale: restarted), and once unpinned again.
+TEST(ContactHistory, PinnedTouchReturnsThePairsOwnEntry) {
   dem::ContactHistory h;
   h.begin_step();
   h.prepare();
-  constexpr int kPairs = 600;
-  std::vector<std::uint32_t> hints(kPairs, 0xffffffffu);
-  for (std::int64_t k = 0; k < kPairs; ++k) {
+  constexpr std::int64_t kOld = 600;
+  for (std::int64_t k = 0; k < kOld; ++k) {
     if (h.nearly_full()) h.make_room();
-    h.touch(k, k + 1, hints[static_cast<std::size_t>(k)])->displacement.x() = static_cast<double>(k);
+    h.touch(k, k + 1)->displacement.x() = static_cast<double>(k);
   }
-  auto expect_own_entries = [&](const char* when) {
-    for (std::int64_t k = 0; k < kPairs; ++k) {
-      const dem::ContactHistoryEntry* e = h.touch(k + 1, k, hints[static_cast<std::size_t>(k)]);
-      ASSERT_EQ(e, h.find(k, k + 1)) << when << ", pair " << k;
-      ASSERT_EQ(e->displacement.x(), static_cast<double>(k)) << when << ", pair " << k;
+  // The list: the old pairs in reverse and some the other way round, new pairs between them,
+  // and pair (7, 8) a second time at the end.
+  std::vector<std::pair<std::int64_t, std::int64_t>> keys;
+  for (std::int64_t k = kOld - 1; k >= 0; --k) {
+    keys.emplace_back(k % 3 == 0 ? std::pair{k + 1, k} : std::pair{k, k + 1});
+    if (k % 5 == 0) keys.emplace_back(5000 + k, 6000 + k);
+  }
+  keys.emplace_back(7, 8);
+  const std::uint64_t generation = h.pin_generation();
+  h.pin(keys);
+  EXPECT_NE(h.pin_generation(), generation);
+  ASSERT_EQ(h.pinned_count(), keys.size());
+  h.begin_step();
+  std::vector<const dem::ContactHistoryEntry*> seen(keys.size());
+  auto touch_all = [&](const char* when, bool same_pointers) {
+    for (std::size_t p = 0; p < keys.size(); ++p) {
+      if (h.nearly_full()) h.make_room();
+      const auto [a, b] = keys[p];
+      dem::ContactHistoryEntry* e = h.touch_pinned(p, a, b);
+      ASSERT_EQ(e, h.find(a, b)) << when << ", position " << p;
+      ASSERT_EQ(std::pair(e->first, e->second), std::pair(std::min(a, b), std::max(a, b))) << when << ", position " << p;
+      ASSERT_EQ(e->pinned, dem::ContactHistoryEntry::kNotPinned);
+      if (same_pointers) {
+        ASSERT_EQ(e, seen[p]) << when << ", position " << p;
+      }
+      seen[p] = e;
+      const bool old = std::min(a, b) < kOld;
+      ASSERT_EQ(e->displacement.x(), old ? static_cast<double>(std::min(a, b)) : 0.0) << when << ", position " << p;
+      if (!old) {
+        ASSERT_TRUE(e->is_new);
+      }
     }
   };
-  expect_own_entries("hints fresh");
-  // Another pair's slot as the hint: the probe must still find the right entry.
-  std::rotate(hints.begin(), hints.begin() + 1, hints.end());
-  std::vector<std::uint32_t> rotated = hints;
-  for (std::int64_t k = 0; k < kPairs; ++k) {
-    const dem::ContactHistoryEntry* e = h.touch(k, k + 1, hints[static_cast<std::size_t>(k)]);
-    ASSERT_EQ(e, h.find(k, k + 1)) << "hint of another pair, pair " << k;
-  }
-  EXPECT_NE(hints, rotated) << "the hints were corrected";
-  // A purge into a larger table moves the entries; the old hints are then mostly wrong.
+  touch_all("first touch after the pin", false);
+  const auto first_78 = std::find(keys.begin(), keys.end(), std::pair<std::int64_t, std::int64_t>{7, 8});
+  EXPECT_EQ(seen.back(), seen[static_cast<std::size_t>(first_78 - keys.begin())]) << "a pair listed twice has one entry";
+  for (std::size_t p = 0; p + 1 < keys.size(); ++p)  // the last is the second (7, 8)
+    const_cast<dem::ContactHistoryEntry*>(seen[p])->displacement.y() = static_cast<double>(p % 1000);
+  // Many other contacts: the table grows, moving every record; pinned data stays where it is.
   const std::size_t before = h.capacity();
-  h.begin_step();
-  for (std::int64_t k = 0; k < 3 * kPairs; ++k) {
+  for (std::int64_t k = 0; k < 4 * kOld; ++k) {
     if (h.nearly_full()) h.make_room();
     h.touch(10000 + k, 20000 + k);
   }
   ASSERT_GT(h.capacity(), before);
-  expect_own_entries("after the table grew");
+  h.begin_step();
+  touch_all("after the table grew", true);
+  // A position asked for a pair that is not pinned there: that pair's own entry.
+  EXPECT_EQ(h.touch_pinned(0, 10000, 20000), h.find(10000, 20000));
+  EXPECT_EQ(h.touch_pinned(1, 3, 4), h.find(3, 4));
+  // Unpinned, every pair keeps its data.
+  h.pin({});
+  EXPECT_EQ(h.pinned_count(), 0u);
+  for (std::size_t p = 0; p + 1 < keys.size(); ++p) {
+    const auto [a, b] = keys[p];
+    const dem::ContactHistoryEntry* e = h.find(a, b);
+    ASSERT_NE(e, nullptr) << "position " << p;
+    ASSERT_EQ(e->displacement.y(), static_cast<double>(p % 1000)) << "position " << p;
+  }
+  // Pinned again and left untouched for a whole step: stale, restarted from zero.
+  h.pin(keys);
+  h.begin_step();
+  h.begin_step();
+  const dem::ContactHistoryEntry* restarted = h.touch_pinned(3, keys[3].first, keys[3].second);
+  EXPECT_TRUE(restarted->is_new);
+  EXPECT_EQ(restarted->displacement.squaredNorm(), 0.0);
+  // A restore drops the pins (the positions no longer hold).
+  const std::uint64_t pinned_at = h.pin_generation();
+  h.restore(h.step(), {});
+  EXPECT_EQ(h.pinned_count(), 0u);
+  EXPECT_NE(h.pin_generation(), pinned_at);
 }
