@@ -23,7 +23,11 @@
 // records), so pointers to it stay valid until the next pin() or restore().
 #include "particles/ParticleStore.hpp"
 
+#include <algorithm>
 #include <cstddef>
+#ifndef PREFD
+#define PREFD 8
+#endif
 #include <cstdint>
 #include <span>
 #include <utility>
@@ -71,11 +75,18 @@ class ContactHistory {
   /// still hold while pin_generation() == g.
   std::uint64_t pin_generation() const { return pin_generation_; }
   std::size_t pinned_count() const { return pinned_.size(); }
+  /// touch_pinned() starts loading the entry this many list positions ahead (measured on the
+  /// bench bed, 20 000 particles: 8.1-8.2 M particle-steps/s at 8, 8.4-8.6 M at 16, 7.1-8.4 M
+  /// at 32, 7.3-7.8 M without).
+  static constexpr std::size_t kPinnedPrefetchAhead = 16;
   /// touch() of the pair (a, b) pinned at `position`: its data, without a lookup when the pair
   /// has touched since the pin or had an entry then (else the lookup inserts its record). A
   /// position that holds another pair is looked up the usual way. Requires !nearly_full().
   ContactHistoryEntry* touch_pinned(std::size_t position, std::int64_t a, std::int64_t b) {
     if (a > b) std::swap(a, b);
+    // The touches come in list order, but only the touching pairs': the hardware prefetcher
+    // missed most of them (the first read of the entry took 10% of the bench step).
+    __builtin_prefetch(pinned_.data() + std::min(position + kPinnedPrefetchAhead, pinned_.size() - 1), 1);
     ContactHistoryEntry& e = pinned_[position];
     if (e.last_step >= 0 && e.first == a && e.second == b) return renew(e);
     return touch_unassigned_pin(position, a, b);
