@@ -17,7 +17,7 @@
 // slot stays as the pair's record (its key and where the data is), so find(), touch(), adopt()
 // and the listings see pinned pairs like any other. Why: the list visits its pairs in cell
 // order while the table keeps them in id order. On the 20 000-particle bench bed a third of
-// the lookups (through a per-pair hint of the slot, until stop 31) jumped more than 64 slots,
+// the lookups (through a per-pair hint of the slot, before stop 32) jumped more than 64 slots,
 // and the touches took a third of the step, nearly all of it waiting for the entry's first
 // line. Pinned, the walk is in list order. Pinned data never moves (a purge moves only the
 // records), so pointers to it stay valid until the next pin() or restore().
@@ -25,9 +25,6 @@
 
 #include <algorithm>
 #include <cstddef>
-#ifndef PREFD
-#define PREFD 8
-#endif
 #include <cstdint>
 #include <span>
 #include <utility>
