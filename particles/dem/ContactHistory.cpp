@@ -77,14 +77,14 @@ ContactHistoryEntry* ContactHistory::touch(std::int64_t a, std::int64_t b) {
   }
 }
 
-ContactHistoryEntry* ContactHistory::record(std::int64_t a, std::int64_t b) {
-  if (slots_.empty()) return nullptr;
+std::size_t ContactHistory::slot_of(std::int64_t a, std::int64_t b) const {
+  if (slots_.empty()) return kNoSlot;
   std::size_t k = home(a, b);
   while (slots_[k].last_step >= 0) {
-    if (slots_[k].first == a && slots_[k].second == b) return &slots_[k];
+    if (slots_[k].first == a && slots_[k].second == b) return k;
     k = (k + 1) & (slots_.size() - 1);
   }
-  return nullptr;
+  return kNoSlot;
 }
 
 void ContactHistory::unpin() {
@@ -105,10 +105,10 @@ void ContactHistory::pin(std::span<const std::pair<std::int64_t, std::int64_t>> 
     if (a > b) std::swap(a, b);
     ContactHistoryEntry& d = pinned_[k];
     d = ContactHistoryEntry{a, b, -1, Vec3::Zero(), Vec3::Zero(), true};
-    ContactHistoryEntry* slot = record(a, b);
-    if (slot == nullptr || slot->pinned != ContactHistoryEntry::kNotPinned) continue;  // none, or listed twice
-    d = *slot;
-    slot->pinned = static_cast<std::uint32_t>(k);
+    const std::size_t s = slot_of(a, b);
+    if (s == kNoSlot || slots_[s].pinned != ContactHistoryEntry::kNotPinned) continue;  // none, or listed twice
+    d = slots_[s];
+    slots_[s].pinned = static_cast<std::uint32_t>(k);
   }
 }
 
@@ -125,15 +125,11 @@ ContactHistoryEntry* ContactHistory::touch_unassigned_pin(std::size_t position, 
 }
 
 const ContactHistoryEntry* ContactHistory::find(std::int64_t a, std::int64_t b) const {
-  if (slots_.empty()) return nullptr;
   if (a > b) std::swap(a, b);
-  std::size_t k = home(a, b);
-  while (slots_[k].last_step >= 0) {
-    const ContactHistoryEntry& e = slots_[k];
-    if (e.first == a && e.second == b) return live(data(e)) ? &data(e) : nullptr;
-    k = (k + 1) & (slots_.size() - 1);
-  }
-  return nullptr;
+  const std::size_t k = slot_of(a, b);
+  if (k == kNoSlot) return nullptr;
+  const ContactHistoryEntry& e = data(slots_[k]);
+  return live(e) ? &e : nullptr;
 }
 
 double ContactHistory::mean_probe_length() const {
@@ -184,13 +180,11 @@ void ContactHistory::adopt(const ContactHistoryEntry& entry) {
          !(slots_[k].first == entry.first && slots_[k].second == entry.second))
     k = (k + 1) & (slots_.size() - 1);
   ContactHistoryEntry& slot = slots_[k];
-  if (slot.last_step < 0) {
-    ++occupied_;
-    slot.pinned = ContactHistoryEntry::kNotPinned;
-  }
+  if (slot.last_step < 0) ++occupied_;  // an empty slot is never pinned
   const std::uint32_t pinned = slot.pinned;
-  data(slot) = entry;
-  data(slot).pinned = ContactHistoryEntry::kNotPinned;
+  ContactHistoryEntry& d = data(slot);  // the slot itself unless the pair is pinned
+  d = entry;
+  d.pinned = ContactHistoryEntry::kNotPinned;
   slot.pinned = pinned;  // a pinned pair's record keeps pointing to its data
 }
 

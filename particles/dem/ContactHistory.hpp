@@ -125,8 +125,9 @@ class ContactHistory {
   const ContactHistoryEntry& data(const ContactHistoryEntry& slot) const {
     return slot.pinned == ContactHistoryEntry::kNotPinned ? slot : pinned_[slot.pinned];
   }
-  /// The slot holding the pair (a <= b), or nullptr.
-  ContactHistoryEntry* record(std::int64_t a, std::int64_t b);
+  static constexpr std::size_t kNoSlot = static_cast<std::size_t>(-1);
+  /// Index of the slot holding the pair (a <= b), or kNoSlot.
+  std::size_t slot_of(std::int64_t a, std::int64_t b) const;
   /// touch_pinned() of a pair with no data yet at its position (or not pinned there).
   ContactHistoryEntry* touch_unassigned_pin(std::size_t position, std::int64_t a, std::int64_t b);
   /// A found entry touched in this step: restarted from zero if it was stale.

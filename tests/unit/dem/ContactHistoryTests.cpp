@@ -253,7 +253,7 @@ TEST(ContactHistory, PinnedTouchReturnsThePairsOwnEntry) {
   EXPECT_NE(h.pin_generation(), generation);
   ASSERT_EQ(h.pinned_count(), keys.size());
   h.begin_step();
-  std::vector<const dem::ContactHistoryEntry*> seen(keys.size());
+  std::vector<dem::ContactHistoryEntry*> seen(keys.size());
   auto touch_all = [&](const char* when, bool same_pointers) {
     for (std::size_t p = 0; p < keys.size(); ++p) {
       if (h.nearly_full()) h.make_room();
@@ -277,7 +277,7 @@ TEST(ContactHistory, PinnedTouchReturnsThePairsOwnEntry) {
   const auto first_78 = std::find(keys.begin(), keys.end(), std::pair<std::int64_t, std::int64_t>{7, 8});
   EXPECT_EQ(seen.back(), seen[static_cast<std::size_t>(first_78 - keys.begin())]) << "a pair listed twice has one entry";
   for (std::size_t p = 0; p + 1 < keys.size(); ++p)  // the last is the second (7, 8)
-    const_cast<dem::ContactHistoryEntry*>(seen[p])->displacement.y() = static_cast<double>(p % 1000);
+    seen[p]->displacement.y() = static_cast<double>(p % 1000);
   // Many other contacts: the table grows, moving every record; pinned data stays where it is.
   const std::size_t before = h.capacity();
   for (std::int64_t k = 0; k < 4 * kOld; ++k) {
