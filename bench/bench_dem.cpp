@@ -32,9 +32,10 @@ Bed make_bed() {
 }
 
 void run_bed(benchmark::State& state, const std::string& tangential, const dem::LawParameters& tp,
-             double verlet_skin = 0.0) {
+             double verlet_skin = 0.0, int lane_width = 0) {
   Bed bed = make_bed();
   dem::ContactForceSettings settings;
+  settings.lane_width = lane_width;
   const double tilt = 25.0 * std::numbers::pi / 180.0;
   settings.gravity = Vec3(std::sin(tilt), -std::cos(tilt), 0.0);
   settings.verlet_skin = verlet_skin;
@@ -80,6 +81,7 @@ void run_bed(benchmark::State& state, const std::string& tangential, const dem::
       static_cast<double>(gw::ParticleStore::bytes_per_particle()) + history_bytes + scratch_bytes;
   state.counters["history_bytes_per_particle"] = history_bytes;
   if (verlet_skin > 0.0) {
+    state.counters["lanes"] = field.lane_width();
     state.counters["list_builds"] = static_cast<double>(field.verlet_list().builds());
     state.counters["steps"] = static_cast<double>(state.iterations() + 50);
   }
@@ -92,18 +94,26 @@ void BM_DenseBedCoulombSpringHistory(benchmark::State& state) {
   run_bed(state, "coulomb_spring", {{"stiffness", 5.7e3}, {"friction", 0.5}});
 }
 
-// Same beds with a Verlet list of skin 0.1 d (rebuilt when a particle has moved 0.05 d).
+// Same beds with a Verlet list of skin 0.1 d (rebuilt when a particle has moved 0.05 d), the
+// listed pairs computed in SIMD lanes: the argument is the lane width (0: the widest this CPU
+// runs, as a run would use; then each width it runs, to compare).
 void BM_DenseBedStaticFrictionVerlet(benchmark::State& state) {
-  run_bed(state, "static_friction", {{"friction", 0.5}}, 0.1);
+  run_bed(state, "static_friction", {{"friction", 0.5}}, 0.1, static_cast<int>(state.range(0)));
 }
 void BM_DenseBedCoulombSpringHistoryVerlet(benchmark::State& state) {
-  run_bed(state, "coulomb_spring", {{"stiffness", 5.7e3}, {"friction", 0.5}}, 0.1);
+  run_bed(state, "coulomb_spring", {{"stiffness", 5.7e3}, {"friction", 0.5}}, 0.1, static_cast<int>(state.range(0)));
+}
+void lane_widths(benchmark::internal::Benchmark* b) {
+  b->ArgName("lanes");
+  b->Arg(0);
+  for (const int width : {2, 4, 8})
+    if (dem::lane_width_supported(width)) b->Arg(width);
 }
 
 }  // namespace
 
 BENCHMARK(BM_DenseBedStaticFriction)->Unit(benchmark::kMillisecond)->MinTime(3.0);
 BENCHMARK(BM_DenseBedCoulombSpringHistory)->Unit(benchmark::kMillisecond)->MinTime(3.0);
-BENCHMARK(BM_DenseBedStaticFrictionVerlet)->Unit(benchmark::kMillisecond)->MinTime(3.0);
-BENCHMARK(BM_DenseBedCoulombSpringHistoryVerlet)->Unit(benchmark::kMillisecond)->MinTime(3.0);
+BENCHMARK(BM_DenseBedStaticFrictionVerlet)->Apply(lane_widths)->Unit(benchmark::kMillisecond)->MinTime(3.0);
+BENCHMARK(BM_DenseBedCoulombSpringHistoryVerlet)->Apply(lane_widths)->Unit(benchmark::kMillisecond)->MinTime(3.0);
 BENCHMARK_MAIN();

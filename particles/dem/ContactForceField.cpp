@@ -1,6 +1,7 @@
 #include "particles/dem/ContactForceField.hpp"
 
 #include "core/Error.hpp"
+#include "particles/dem/ContactLanes.hpp"
 #include "particles/dem/CoulombSpring.hpp"
 #include "particles/dem/HertzNormal.hpp"
 #include "particles/dem/LinearSpringDashpot.hpp"
@@ -12,11 +13,9 @@
 #include <cstring>
 #include <limits>
 #include <stdexcept>
+#include <string>
 #include <type_traits>
 
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
 
 namespace grainwave::particles::dem {
 
@@ -183,223 +182,19 @@ ContactHistoryEntry* ContactForceField::touch_listed_history(std::int64_t a, std
   return list_index < history_.pinned_count() ? history_.touch_pinned(list_index, a, b) : history_.touch(a, b);
 }
 
-namespace {
-
-// Two contacts at a time in the two lanes of a vector (GCC/Clang vector extensions; SSE2 on
-// x86-64). The element-wise operators round each lane as the scalar operation would, and nothing
-// is contracted or reassociated, so a lane holds exactly what the contact-by-contact code
-// computes. Four lanes (split into two SSE2 halves by the compiler) measured 25% slower.
-constexpr int kLanes = 2;
-using Lanes = double __attribute__((vector_size(kLanes * sizeof(double))));
-
-[[gnu::always_inline]] inline Lanes lanes_sqrt(Lanes a) {
-#if defined(__SSE2__)
-  return _mm_sqrt_pd(a);
-#else
-  return Lanes{std::sqrt(a[0]), std::sqrt(a[1])};
-#endif
-}
-/// std::max(a, b) per lane (a when a < b is false, NaN included).
-[[gnu::always_inline]] inline Lanes lanes_max(Lanes a, Lanes b) { return a < b ? b : a; }
-[[gnu::always_inline]] inline Lanes lanes_load(const double* p) {
-  Lanes v;
-  std::memcpy(&v, p, sizeof v);
-  return v;
-}
-[[gnu::always_inline]] inline void lanes_store(double* p, Lanes v) { std::memcpy(p, &v, sizeof v); }
-/// Component k of the Vec3s at slots s[0], s[1].
-[[gnu::always_inline]] inline Lanes gather(const Vec3* v, const std::uint32_t* s, int k) {
-  Lanes r;
-  for (int l = 0; l < kLanes; ++l) r[l] = v[s[l]][k];
-  return r;
-}
-[[gnu::always_inline]] inline Lanes gather(const double* v, const std::uint32_t* s) {
-  Lanes r;
-  for (int l = 0; l < kLanes; ++l) r[l] = v[s[l]];
-  return r;
-}
-
-/// Three components, one contact per lane.
-struct Lanes3 {
-  Lanes x, y, z;
-};
-[[gnu::always_inline]] inline Lanes dot(const Lanes3& a, const Lanes3& b) {  // Eigen's order
-  return a.x * b.x + a.y * b.y + a.z * b.z;
-}
-[[gnu::always_inline]] inline Lanes3 cross(const Lanes3& a, const Lanes3& b) {
-  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
-}
-[[gnu::always_inline]] inline Lanes3 scaled(Lanes s, const Lanes3& a) { return {s * a.x, s * a.y, s * a.z}; }
-[[gnu::always_inline]] inline Lanes3 minus(const Lanes3& a, const Lanes3& b) {
-  return {a.x - b.x, a.y - b.y, a.z - b.z};
-}
-/// Per lane, `when` ? a : b.
-template <class Mask>
-[[gnu::always_inline]] inline Lanes3 select(Mask when, const Lanes3& a, const Lanes3& b) {
-  return {when ? a.x : b.x, when ? a.y : b.y, when ? a.z : b.z};
-}
-/// rotate_into_plane per lane (its branches as selections).
-[[gnu::always_inline]] inline Lanes3 lanes_rotate_into_plane(const Lanes3& v, const Lanes3& normal) {
-  const Lanes length2 = dot(v, v);
-  const Lanes3 projected = minus(v, scaled(dot(v, normal), normal));
-  const Lanes projected2 = dot(projected, projected);
-  const Lanes3 rotated = scaled(lanes_sqrt(length2 / projected2), projected);
-  const Lanes zero{};
-  return select(length2 == 0.0, v, select(projected2 <= 1e-24 * length2, Lanes3{zero, zero, zero}, rotated));
-}
-
-/// Touching pairs of one batch, then their forces (structure of arrays).
-struct PairBatch {
-  static constexpr int kSize = 64;  // a multiple of kLanes
-  int count = 0;
-  std::uint32_t i[kSize], j[kSize];  // as listed
-  alignas(64) double dx[kSize], dy[kSize], dz[kSize], distance2[kSize];
-  // History laws: -1 where the canonical orientation (touch_history) reverses the listed pair,
-  // else +1; and the pair's history entry.
-  alignas(64) double orientation[kSize];
-  ContactHistoryEntry* entry[kSize];
-  ContactHistoryEntry pad_entry;  ///< written by the lane that pads an odd batch (then unused)
-  // Out: the force on i (on_i), n × F_t (lever), the overlap; i and j of the oriented contact.
-  alignas(64) double fx[kSize], fy[kSize], fz[kSize], lx[kSize], ly[kSize], lz[kSize], overlap[kSize];
-};
-
-/// What the lanes read of the store and the normal law.
-struct LaneInputs {
-  const Vec3* velocity;
-  const Vec3* angular_velocity;
-  const double* radius;
-  const double* inverse_mass;
-  double stiffness, damping_factor;
-};
-
-/// A lane pair's contact as particle_contact and LinearSpringDashpot::force compute it (in the
-/// listed orientation), operation for operation (Eigen's cross, dot and norm in their
-/// coefficient order).
-struct LaneContact {
-  Lanes3 normal, relative_velocity;
-  Lanes overlap, effective_mass, normal_speed, normal_force;
-};
-[[gnu::always_inline]] inline LaneContact lane_contact(const PairBatch& b, int l, const LaneInputs& in) {
-  const std::uint32_t* I = b.i + l;
-  const std::uint32_t* J = b.j + l;
-  LaneContact c;
-  const Lanes distance = lanes_sqrt(lanes_load(b.distance2 + l));
-  const Lanes inverse_distance = 1.0 / distance;
-  c.normal = {lanes_load(b.dx + l) * inverse_distance, lanes_load(b.dy + l) * inverse_distance,
-              lanes_load(b.dz + l) * inverse_distance};
-  const Lanes ri = gather(in.radius, I), rj = gather(in.radius, J);
-  c.overlap = ri + rj - distance;
-  const Lanes3 spin{ri * gather(in.angular_velocity, I, 0) + rj * gather(in.angular_velocity, J, 0),
-                    ri * gather(in.angular_velocity, I, 1) + rj * gather(in.angular_velocity, J, 1),
-                    ri * gather(in.angular_velocity, I, 2) + rj * gather(in.angular_velocity, J, 2)};
-  const Lanes3 velocity_difference{gather(in.velocity, J, 0) - gather(in.velocity, I, 0),
-                                   gather(in.velocity, J, 1) - gather(in.velocity, I, 1),
-                                   gather(in.velocity, J, 2) - gather(in.velocity, I, 2)};
-  c.relative_velocity = minus(velocity_difference, cross(spin, c.normal));
-  c.effective_mass = 1.0 / (gather(in.inverse_mass, I) + gather(in.inverse_mass, J));
-  c.normal_speed = dot(c.relative_velocity, c.normal);
-  const Lanes eta = in.damping_factor * lanes_sqrt(c.effective_mass * in.stiffness);
-  c.normal_force = in.stiffness * c.overlap - eta * c.normal_speed;
-  return c;
-}
-
-/// The lanes' forces as apply() forms them: on_i = F_t - f_n n and the lever n × F_t.
-[[gnu::always_inline]] inline void store_lane_forces(PairBatch& b, int l, const Lanes3& normal, Lanes normal_force,
-                                                     const Lanes3& tangential_force, Lanes overlap) {
-  const Lanes3 on_i = minus(tangential_force, scaled(normal_force, normal));
-  const Lanes3 lever = cross(normal, tangential_force);
-  lanes_store(b.fx + l, on_i.x);
-  lanes_store(b.fy + l, on_i.y);
-  lanes_store(b.fz + l, on_i.z);
-  lanes_store(b.lx + l, lever.x);
-  lanes_store(b.ly + l, lever.y);
-  lanes_store(b.lz + l, lever.z);
-  lanes_store(b.overlap + l, overlap);
-}
-
-/// StaticFriction::force per lane.
-struct StaticFrictionLanes {
-  static constexpr bool kKeepsHistory = false;
-  double mu, regularization_speed;
-  explicit StaticFrictionLanes(const StaticFriction& law)
-      : mu(law.friction()), regularization_speed(law.regularization_speed()) {}
-  [[gnu::always_inline]] void operator()(PairBatch& b, int l, const LaneContact& c) const {
-    const Lanes3 vt = minus(c.relative_velocity, scaled(c.normal_speed, c.normal));
-    const Lanes speed = lanes_sqrt(dot(vt, vt));
-    const Lanes magnitude = mu * lanes_max(c.normal_force, Lanes{} + 0.0);
-    const Lanes scale = magnitude / lanes_max(speed, Lanes{} + regularization_speed);
-    const auto sliding = (speed != 0.0) & (magnitude != 0.0);  // else F_t = 0 exactly
-    const Lanes zero{};
-    store_lane_forces(b, l, c.normal, c.normal_force, select(sliding, scaled(scale, vt), Lanes3{zero, zero, zero}),
-                      c.overlap);
-  }
-};
-
-/// CoulombSpring with advance_history's kSingle stage (velocity Verlet) per lane, in the
-/// canonical orientation (touch_history), reading and writing the pairs' history entries.
-struct CoulombSpringLanes {
-  static constexpr bool kKeepsHistory = true;  // reads b.orientation and b.entry
-  double stiffness, friction, damping_factor, half_dt;
-  CoulombSpringLanes(const CoulombSpring& law, double dt)
-      : stiffness(law.stiffness()), friction(law.friction()), damping_factor(law.damping_factor()),
-        half_dt(0.5 * dt) {}
-  [[gnu::always_inline]] void operator()(PairBatch& b, int l, const LaneContact& c) const {
-    // touch_history's reversal: -n and -v_ji (exact); v_ji · n is unchanged by it, bit for bit.
-    const Lanes orientation = lanes_load(b.orientation + l);
-    const Lanes3 normal = scaled(orientation, c.normal);
-    const Lanes3 relative_velocity = scaled(orientation, c.relative_velocity);
-    const Lanes3 vt = minus(relative_velocity, scaled(c.normal_speed, normal));
-    ContactHistoryEntry* const e0 = b.entry[l];
-    ContactHistoryEntry* const e1 = b.entry[l + 1];
-    const Lanes3 displacement{Lanes{e0->displacement.x(), e1->displacement.x()},
-                              Lanes{e0->displacement.y(), e1->displacement.y()},
-                              Lanes{e0->displacement.z(), e1->displacement.z()}};
-    const Lanes3 stage_velocity{Lanes{e0->stage_velocity.x(), e1->stage_velocity.x()},
-                                Lanes{e0->stage_velocity.y(), e1->stage_velocity.y()},
-                                Lanes{e0->stage_velocity.z(), e1->stage_velocity.z()}};
-    using Mask = decltype(Lanes{} < Lanes{});
-    const Mask is_new{e0->is_new ? -1 : 0, e1->is_new ? -1 : 0};
-    Lanes3 xi = lanes_rotate_into_plane(displacement, normal);
-    const Lanes3 vt_old = select(is_new, vt, lanes_rotate_into_plane(stage_velocity, normal));
-    const Lanes3 increment{half_dt * (vt_old.x + vt.x), half_dt * (vt_old.y + vt.y), half_dt * (vt_old.z + vt.z)};
-    xi = {xi.x + increment.x, xi.y + increment.y, xi.z + increment.z};
-    // coulomb_limited_spring
-    const Lanes damping = damping_factor * lanes_sqrt(c.effective_mass * stiffness);
-    Lanes3 force{stiffness * xi.x + damping * vt.x, stiffness * xi.y + damping * vt.y,
-                 stiffness * xi.z + damping * vt.z};
-    const Lanes limit = friction * lanes_max(c.normal_force, Lanes{} + 0.0);
-    const Lanes force2 = dot(force, force);
-    const auto slips = force2 > limit * limit;
-    if (slips[0] || slips[1]) [[unlikely]] {  // ~3 % of lane pairs in a dense flowing bed
-      const Lanes3 capped = scaled(limit / lanes_sqrt(force2), force);
-      const Lanes3 damping_part = scaled(damping, vt);
-      const Lanes3 slipped_xi{(capped.x - damping_part.x) / stiffness, (capped.y - damping_part.y) / stiffness,
-                              (capped.z - damping_part.z) / stiffness};
-      force = select(slips, capped, force);
-      xi = select(slips, slipped_xi, xi);
-    }
-    ContactHistoryEntry* const entries[kLanes] = {e0, e1};
-    for (int k = 0; k < kLanes; ++k) {
-      entries[k]->displacement = Vec3(xi.x[k], xi.y[k], xi.z[k]);
-      entries[k]->stage_velocity = Vec3(vt.x[k], vt.y[k], vt.z[k]);
-      entries[k]->is_new = false;
-    }
-    store_lane_forces(b, l, normal, c.normal_force, force, c.overlap);
-  }
-};
-
-}  // namespace
-
 template <class TangentialLanes>
 void ContactForceField::add_listed_pairs_linear(const ParticleStore& store, const LinearSpringDashpot& normal,
                                                 const TangentialLanes& tangential) {
+  using namespace lanes;
   constexpr bool keeps_history = TangentialLanes::kKeepsHistory;
+  const int width = settings_.lane_width == 0 ? lanes::supported_width_up_to(TangentialLanes::kPreferredWidth)
+                                              : lane_width();
   const LaneInputs in{store.velocity.data(), store.angular_velocity.data(), store.radius.data(),
                       inverse_mass_.data(), normal.stiffness(), normal.damping_factor()};
   const double* radius = store.radius.data();
   PairBatch b;
   auto flush = [&] {
-    for (int k = b.count; k % kLanes != 0; ++k) {  // pad with a copy of the first contact
+    for (int k = b.count; k % width != 0; ++k) {  // pad with copies of the first contact
       b.i[k] = b.i[0];
       b.j[k] = b.j[0];
       b.dx[k] = b.dx[0];
@@ -411,7 +206,7 @@ void ContactForceField::add_listed_pairs_linear(const ParticleStore& store, cons
         b.entry[k] = &b.pad_entry;  // not the first contact's: it may have been advanced already
       }
     }
-    for (int l = 0; l < b.count; l += kLanes) tangential(b, l, lane_contact(b, l, in));
+    batch_lane_forces(width, b, (b.count + width - 1) / width * width, in, tangential);
     Contact c;  // for note_depth
     c.is_wall = false;
     for (int k = 0; k < b.count; ++k) {
@@ -486,8 +281,8 @@ void ContactForceField::evaluate_fused(const ParticleStore& store, const Normal&
   if constexpr (std::is_same_v<Normal, LinearSpringDashpot> &&
                 (std::is_same_v<Tangential, StaticFriction> || std::is_same_v<Tangential, CoulombSpring>)) {
     if (use_list_ && settings_.batched && (!keeps_history || stage == HistoryStage::kSingle)) {
-      if constexpr (keeps_history) add_listed_pairs_linear(store, normal, CoulombSpringLanes(tangential, dt));
-      else add_listed_pairs_linear(store, normal, StaticFrictionLanes(tangential));
+      if constexpr (keeps_history) add_listed_pairs_linear(store, normal, lanes::CoulombSpringLanes(tangential, dt));
+      else add_listed_pairs_linear(store, normal, lanes::StaticFrictionLanes(tangential));
       Contact c;
       for_each_wall_contact(store, c, contact_forces);
       return;
@@ -514,6 +309,21 @@ bool ContactForceField::try_fused(const ParticleStore& store, const Normal& norm
     return true;
   }
   return false;
+}
+
+bool lane_width_supported(int width) { return lanes::lane_width_supported(width); }
+
+int ContactForceField::lane_width() const {
+  const int asked = settings_.lane_width;
+  if (asked == 0) {
+    const bool history = dynamic_cast<const CoulombSpring*>(model_.tangential.get()) != nullptr;
+    return lanes::supported_width_up_to(history ? lanes::CoulombSpringLanes::kPreferredWidth
+                                                : lanes::StaticFrictionLanes::kPreferredWidth);
+  }
+  if (!lanes::lane_width_supported(asked))
+    throw std::invalid_argument("ContactForceField: lane_width " + std::to_string(asked) +
+                                " is not one this CPU runs (2, or 4 with AVX2, or 8 with AVX-512F)");
+  return asked;
 }
 
 void ContactForceField::prepare_slots(const ParticleStore& store) {

@@ -82,6 +82,11 @@ struct ContactForceSettings {
   /// Coulomb spring (velocity Verlet), the listed pairs' forces are computed two at a time in
   /// SIMD lanes (bitwise the same).
   bool batched = true;
+  /// Lanes of the batched pass: 0 takes the law's preferred width (4 for static friction, 8 for
+  /// the Coulomb spring, as measured fastest) or the widest below it that this CPU runs
+  /// (lane_width_supported: 8 with AVX-512F, 4 with AVX2, 2 always); 2, 4 or 8 asks for that
+  /// width. Any width gives the same bits; only the speed differs.
+  int lane_width = 0;
   /// Particle count that sizes the cell grid (LinkedCells::build); 0: the store's size. A
   /// domain-decomposed run sets the global count so that every rank uses the serial grid.
   std::size_t grid_particles = 0;
@@ -98,6 +103,10 @@ struct DeepestContact {
 
 class LinearSpringDashpot;
 class StaticFriction;
+
+/// Whether this machine runs the batched pass at `width` lanes (2: any x86-64 or other CPU;
+/// 4: AVX2; 8: AVX-512F).
+bool lane_width_supported(int width);
 
 class ContactForceField {
  public:
@@ -125,6 +134,10 @@ class ContactForceField {
   const ContactHistory& history() const { return history_; }
   ContactHistory& history() { return history_; }
   const VerletList& verlet_list() const { return verlet_; }
+  /// The lanes the batched pass runs at with the settings and law as they are
+  /// (settings().lane_width resolved); throws std::invalid_argument for a width this CPU does
+  /// not run.
+  int lane_width() const;
 
   /// Caller-managed Verlet list (settings().verlet_managed). VerletList::kValid when the list
   /// serves the coming step, whose evaluations see the owned slots (those before the ghosts)

@@ -82,18 +82,32 @@ struct FusedAndListed {
 };
 
 /// One contact model on a Verlet list in a box periodic on every axis (pairs with and without
-/// the minimum image), under gravity: listed pairs computed in lanes, and contact by contact.
+/// the minimum image), under gravity: listed pairs computed in lanes of the given width, and
+/// contact by contact.
 struct BatchedAndSingle {
   dem::ContactForceField batched, single;
-  explicit BatchedAndSingle(const dem::ContactModel& model)
-      : batched(model, periodic_box(), listed_settings(&dem::ContactForceSettings::batched, true)),
+  BatchedAndSingle(const dem::ContactModel& model, int lane_width)
+      : batched(model, periodic_box(), with_lane_width(lane_width)),
         single(model, periodic_box(), listed_settings(&dem::ContactForceSettings::batched, false)) {}
+  static dem::ContactForceSettings with_lane_width(int lane_width) {
+    dem::ContactForceSettings s = listed_settings(&dem::ContactForceSettings::batched, true);
+    s.lane_width = lane_width;
+    return s;
+  }
   static gw::Domain periodic_box() {
     gw::Domain domain;
     domain.hi = Vec3(5.0, 5.0, 5.0);
     return domain;
   }
 };
+
+/// The batched pass's lane widths this CPU runs (2 always; 4 with AVX2, 8 with AVX-512F).
+std::vector<int> lane_widths() {
+  std::vector<int> widths;
+  for (const int width : {2, 4, 8})
+    if (dem::lane_width_supported(width)) widths.push_back(width);
+  return widths;
+}
 
 /// granular_gas(seed, spinning) at three times the speed, every tenth particle fixed.
 gw::ParticleStore fast_gas_with_fixed(unsigned seed) {
@@ -183,9 +197,9 @@ TEST(VerletList, ListedSeparationsAreMinimumImagesBitwise) {
   }
 }
 
-// The listed pairs of the linear spring-dashpot with static friction are computed two at a
-// time in SIMD lanes (ContactForceSettings::batched). Against the contact-by-contact fused
-// pass: bitwise the same forces, torques, count and deepest contact, through a fast gas in a
+// The listed pairs of the linear spring-dashpot with static friction are computed 2, 4 or 8 at
+// a time in SIMD lanes (ContactForceSettings::batched, lane_width; each width this CPU runs).
+// Against the contact-by-contact fused pass: bitwise the same forces, torques, count and deepest contact, through a fast gas in a
 // box periodic on all axes (pairs with and without the minimum image) with some fixed
 // particles, for friction with and without regularisation and without friction (F_t = 0
 // exactly), and on one configuration whose last slots are ghosts (their pairs skipped).
@@ -204,11 +218,13 @@ TEST(ContactForceField, BatchedLanesEqualTheContactByContactPassBitwise) {
   struct Friction {
     double friction, regularization_speed;
   };
+  for (const int width : lane_widths())
   for (const Friction friction : {Friction{0.3, 0.0}, Friction{0.3, 0.05}, Friction{0.0, 0.0}}) {
     const auto model = dem::make_contact_model(
         "linear_spring_dashpot", {{"stiffness", 1e4}, {"restitution", 0.8}}, "static_friction",
         {{"friction", friction.friction}, {"regularization_speed", friction.regularization_speed}});
-    BatchedAndSingle fields(model);
+    BatchedAndSingle fields(model, width);
+    ASSERT_EQ(fields.batched.lane_width(), width);
     auto& [batched, single] = fields;
     gw::ParticleStore s = fast_gas_with_fixed(13);
     dem::VelocityVerlet verlet;
@@ -219,13 +235,19 @@ TEST(ContactForceField, BatchedLanesEqualTheContactByContactPassBitwise) {
       // Both at the state after the step (the step evaluated at its predicted velocities).
       batched.evaluate(s, dem::HistoryStage::kSingle, dt);
       single.evaluate(s, dem::HistoryStage::kSingle, dt);
-      compare(batched, single, s.size(), "friction " + std::to_string(friction.friction) + " eps " +
+      compare(batched, single, s.size(), "lanes " + std::to_string(width) + " friction " +
+                                              std::to_string(friction.friction) + " eps " +
                                               std::to_string(friction.regularization_speed) + " step " +
                                               std::to_string(step));
       contacts += static_cast<long>(batched.contact_count());
     }
     EXPECT_GT(contacts, 5000);
     EXPECT_GT(batched.verlet_list().builds(), 5);
+  }
+  {  // A width the pass does not have is refused, not silently replaced.
+    dem::ContactForceSettings odd = listed_settings(&dem::ContactForceSettings::batched, true);
+    odd.lane_width = 3;
+    EXPECT_THROW((void)dem::ContactForceField(frictional_model(), gas_box(), odd).lane_width(), std::invalid_argument);
   }
   // Ghosts: the last 60 slots are another rank's copies; the lists are caller-managed.
   const auto model = frictional_model();
@@ -471,8 +493,8 @@ TEST(ContactForceField, FusedHistoryPassEqualsTheListOfContactsBitwise) {
     }
 }
 
-// The Coulomb spring with history on a Verlet list is also computed two pairs at a time in
-// lanes (velocity Verlet's single stage). Two identical simulations, one batched and one
+// The Coulomb spring with history on a Verlet list is also computed in lanes of each width this
+// CPU runs (velocity Verlet's single stage). Two identical simulations, one batched and one
 // contact by contact, each driving its own particles: after every step bitwise the same
 // positions, velocities, forces and torques, and the same live history entries (pair, last
 // touch, stored displacement, stage velocity). Through a fast spinning gas in a box periodic
@@ -482,11 +504,13 @@ TEST(ContactForceField, BatchedCoulombSpringEqualsTheContactByContactPassBitwise
   struct Tangential {
     double friction, damping_factor;
   };
+  for (const int width : lane_widths())
   for (const Tangential law : {Tangential{0.1, 0.0}, Tangential{0.3, 0.5}, Tangential{5.0, 0.5}}) {
     const auto model = dem::make_contact_model(
         "linear_spring_dashpot", {{"stiffness", 1e4}, {"restitution", 0.8}}, "coulomb_spring",
         {{"stiffness", 3e3}, {"friction", law.friction}, {"damping_factor", law.damping_factor}});
-    BatchedAndSingle fields(model);
+    BatchedAndSingle fields(model, width);
+    ASSERT_EQ(fields.batched.lane_width(), width);
     auto& [batched, single] = fields;
     gw::ParticleStore a = fast_gas_with_fixed(19);
     gw::ParticleStore b = a;
@@ -500,7 +524,7 @@ TEST(ContactForceField, BatchedCoulombSpringEqualsTheContactByContactPassBitwise
     for (int step = 0; step < 1000; ++step) {
       verlet_a.step(a, batched, dt);
       verlet_b.step(b, single, dt);
-      const std::string where = "friction " + std::to_string(law.friction) + " damping " +
+      const std::string where = "lanes " + std::to_string(width) + " friction " + std::to_string(law.friction) + " damping " +
                                 std::to_string(law.damping_factor) + " step " + std::to_string(step);
       ASSERT_EQ(batched.contact_count(), single.contact_count()) << where;
       for (std::size_t i = 0; i < a.size(); ++i) {
@@ -526,8 +550,8 @@ TEST(ContactForceField, BatchedCoulombSpringEqualsTheContactByContactPassBitwise
       }
       contacts += static_cast<long>(batched.contact_count());
     }
-    std::printf("coulomb spring mu %.1f damping %.1f: %ld contacts, %ld stored springs, %ld builds\n",
-                law.friction, law.damping_factor, contacts, stored, batched.verlet_list().builds());
+    std::printf("lanes %d, coulomb spring mu %.1f damping %.1f: %ld contacts, %ld stored springs, %ld builds\n",
+                width, law.friction, law.damping_factor, contacts, stored, batched.verlet_list().builds());
     EXPECT_GT(contacts, 5000);
     EXPECT_GT(stored, 1000);
     EXPECT_GT(batched.verlet_list().builds(), 5);
