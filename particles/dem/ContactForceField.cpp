@@ -187,8 +187,7 @@ void ContactForceField::add_listed_pairs_linear(const ParticleStore& store, cons
                                                 const TangentialLanes& tangential) {
   using namespace lanes;
   constexpr bool keeps_history = TangentialLanes::kKeepsHistory;
-  const int width = settings_.lane_width == 0 ? lanes::supported_width_up_to(TangentialLanes::kPreferredWidth)
-                                              : lane_width();
+  const int width = lane_width_for(TangentialLanes::kPreferredWidth);
   const LaneInputs in{store.velocity.data(), store.angular_velocity.data(), store.radius.data(),
                       inverse_mass_.data(), normal.stiffness(), normal.damping_factor()};
   const double* radius = store.radius.data();
@@ -314,12 +313,14 @@ bool ContactForceField::try_fused(const ParticleStore& store, const Normal& norm
 bool lane_width_supported(int width) { return lanes::lane_width_supported(width); }
 
 int ContactForceField::lane_width() const {
+  const bool history = dynamic_cast<const CoulombSpring*>(model_.tangential.get()) != nullptr;
+  return lane_width_for(history ? lanes::CoulombSpringLanes::kPreferredWidth
+                                : lanes::StaticFrictionLanes::kPreferredWidth);
+}
+
+int ContactForceField::lane_width_for(int preferred) const {
   const int asked = settings_.lane_width;
-  if (asked == 0) {
-    const bool history = dynamic_cast<const CoulombSpring*>(model_.tangential.get()) != nullptr;
-    return lanes::supported_width_up_to(history ? lanes::CoulombSpringLanes::kPreferredWidth
-                                                : lanes::StaticFrictionLanes::kPreferredWidth);
-  }
+  if (asked == 0) return lanes::supported_width_up_to(preferred);
   if (!lanes::lane_width_supported(asked))
     throw std::invalid_argument("ContactForceField: lane_width " + std::to_string(asked) +
                                 " is not one this CPU runs (2, or 4 with AVX2, or 8 with AVX-512F)");

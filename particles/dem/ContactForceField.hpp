@@ -8,9 +8,9 @@
 // This class owns the loops and scratch memory; the laws own the pointwise physics. Nothing is
 // allocated per evaluation once the contact list has reached its working size.
 // For the linear spring–dashpot with static friction or the Coulomb spring on a Verlet list
-// (the curtain and channel cases), the listed pairs are evaluated two at a time in SIMD lanes
-// (settings().batched), with the same arithmetic per contact and the forces added in the same
-// order: bitwise the same.
+// (the curtain and channel cases), the listed pairs are evaluated 2, 4 or 8 at a time in SIMD
+// lanes (settings().batched, ContactLanes.hpp), with the same arithmetic per contact and the
+// forces added in the same order: bitwise the same.
 //
 // Ghosts (domain decomposition, particles/dem/SlabDecomposition): copies of other ranks'
 // particles, flagged kGhost, at the end of the store. A pair of two ghosts is skipped (another
@@ -79,7 +79,7 @@ struct ContactForceSettings {
   /// false keeps the list (contacts()) for every law.
   bool fused = true;
   /// With the fused pass, a Verlet list, the linear spring–dashpot and static friction or the
-  /// Coulomb spring (velocity Verlet), the listed pairs' forces are computed two at a time in
+  /// Coulomb spring (velocity Verlet), the listed pairs' forces are computed several at a time in
   /// SIMD lanes (bitwise the same).
   bool batched = true;
   /// Lanes of the batched pass: 0 takes the law's preferred width (4 for static friction, 8 for
@@ -159,10 +159,10 @@ class ContactForceField {
   void for_each_wall_contact(const ParticleStore& store, Contact& c, ContactFunction&& f);
   /// The fused pass's listed particle pairs for the linear spring–dashpot with static friction
   /// or (velocity Verlet's single stage) the Coulomb spring with history, the laws of the
-  /// curtain and channel cases, two contacts at a time in SIMD lanes (TangentialLanes, in the
-  /// .cpp): the same operations per contact as the contact-by-contact pass, and the forces added,
-  /// the contacts counted and the history entries written in the same order, so every result is
-  /// the same to the bit.
+  /// curtain and channel cases, several contacts at a time in SIMD lanes (TangentialLanes, in
+  /// ContactLanes.hpp): the same operations per contact as the contact-by-contact pass, and the
+  /// forces added, the contacts counted and the history entries written in the same order, so
+  /// every result is the same to the bit.
   template <class TangentialLanes>
   void add_listed_pairs_linear(const ParticleStore& store, const LinearSpringDashpot& normal,
                                const TangentialLanes& tangential);
@@ -193,6 +193,8 @@ class ContactForceField {
   void merge_visit_order(const ParticleStore& store);
   /// Cell width of a search: settings().cell_width, or the largest diameter; plus `skin`.
   double search_cell_width(const ParticleStore& store, double skin) const;
+  /// settings().lane_width resolved: 0 gives `preferred` or the widest below it the CPU runs.
+  int lane_width_for(int preferred) const;
   /// The fused pass for these laws if they are of known final types; false otherwise.
   template <class Normal>
   bool try_fused(const ParticleStore& store, const Normal& normal, HistoryStage stage, double dt);
