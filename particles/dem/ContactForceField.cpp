@@ -68,16 +68,25 @@ void ContactForceField::external_forces(const ParticleStore& store) {
   const std::size_t n = store.size();
   force_.resize(n);
   torque_.resize(n);
+  // Through local pointers (Eigen's vector stores may alias anything: the compiler would load
+  // every address again after each).
+  Vec3* const force = force_.data();
+  Vec3* const torque = torque_.data();
   for (std::size_t i = owned_end_; i < n; ++i) {  // ghosts: their owner sums their forces
-    force_[i].setZero();
-    torque_[i].setZero();
+    force[i].setZero();
+    torque[i].setZero();
   }
+  const Vec3 gravity = settings_.gravity;
+  const std::span<const RecyclingDragZone> zones(settings_.drag_zones);
+  const Vec3* const external_force = store.force.data();
+  const Vec3* const external_torque = store.torque.data();
+  const double* const mass = store.mass.data();
   for (std::size_t i = 0; i < owned_end_; ++i) {
-    force_[i] = store.force[i] + store.mass[i] * settings_.gravity;
-    torque_[i] = store.torque[i];
-    for (const RecyclingDragZone& zone : settings_.drag_zones)
+    force[i] = external_force[i] + mass[i] * gravity;
+    torque[i] = external_torque[i];
+    for (const RecyclingDragZone& zone : zones)
       if (zone.contains(store.position[i]))
-        force_[i] += recycling_drag(zone.coefficient_per_mass, store.mass[i], store.velocity[i]);
+        force[i] += recycling_drag(zone.coefficient_per_mass, mass[i], store.velocity[i]);
   }
 }
 
@@ -193,7 +202,9 @@ void ContactForceField::add_listed_pairs_linear(const ParticleStore& store, cons
   const double* radius = store.radius.data();
   PairBatch b;
   auto flush = [&] {
-    for (int k = b.count; k % width != 0; ++k) {  // pad with copies of the first contact
+    // Pad with copies of the first contact (kSize is a multiple of every width: a full batch
+    // needs none, which the bound says to the compiler).
+    for (int k = b.count; k % width != 0 && k < PairBatch::kSize; ++k) {
       b.i[k] = b.i[0];
       b.j[k] = b.j[0];
       b.dx[k] = b.dx[0];
@@ -208,16 +219,24 @@ void ContactForceField::add_listed_pairs_linear(const ParticleStore& store, cons
     batch_lane_forces(width, b, (b.count + width - 1) / width * width, in, tangential);
     Contact c;  // for note_depth
     c.is_wall = false;
+    // apply() coefficient by coefficient: the same sums, but as plain double stores, which the
+    // compiler knows cannot move the arrays (Eigen's vector stores may alias anything, so after
+    // each one every pointer in reach was loaded again).
+    Vec3* const force = force_.data();
+    Vec3* const torque = torque_.data();
     for (int k = 0; k < b.count; ++k) {
       std::uint32_t i = b.i[k], j = b.j[k];
       if constexpr (keeps_history)
         if (b.orientation[k] < 0.0) std::swap(i, j);
-      const Vec3 on_i(b.fx[k], b.fy[k], b.fz[k]);
-      const Vec3 lever(b.lx[k], b.ly[k], b.lz[k]);
-      force_[i] += on_i;
-      torque_[i] += radius[i] * lever;
-      force_[j] -= on_i;
-      torque_[j] += radius[j] * lever;
+      const double on_i[3] = {b.fx[k], b.fy[k], b.fz[k]};
+      const double lever[3] = {b.lx[k], b.ly[k], b.lz[k]};
+      const double ri = radius[i], rj = radius[j];
+      for (int a = 0; a < 3; ++a) {
+        force[i][a] += on_i[a];
+        torque[i][a] += ri * lever[a];
+        force[j][a] -= on_i[a];
+        torque[j][a] += rj * lever[a];
+      }
       c.i = i;
       c.partner = j;
       c.overlap = b.overlap[k];

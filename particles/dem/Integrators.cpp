@@ -41,9 +41,13 @@ void VelocityVerlet::displacement_ahead(const ParticleStore& store, double dt, s
   // The drift of step(), written the same way.
   const std::size_t n = std::min(store.size(), force_.size());
   out.resize(n);
+  // Through local pointers, as in step().
+  Vec3* const drift = out.data();
+  const Vec3* const v = store.velocity.data();
+  const Vec3* const f = force_.data();
   for (std::size_t i = 0; i < n; ++i) {
     const double inv_m = store.inverse_mass(i);
-    out[i] = inv_m == 0.0 ? Vec3::Zero() : Vec3(dt * (store.velocity[i] + (0.5 * dt * inv_m) * force_[i]));
+    drift[i] = inv_m == 0.0 ? Vec3::Zero() : Vec3(dt * (v[i] + (0.5 * dt * inv_m) * f[i]));
   }
 }
 
@@ -70,31 +74,45 @@ void VelocityVerlet::step(ParticleStore& store, ContactForceField& field, double
   dt_over_inertia_.resize(n);
   const Domain& domain = field.domain();
   const Domain::WrapFreeBox stays = domain.wrap_free_box();
-  for (std::size_t i = 0; i < n; ++i) {
-    const Vec3 f = force_[i], t = torque_[i];
-    const double inv_m = store.inverse_mass(i);
-    inverse_mass_[i] = inv_m;
-    if (inv_m == 0.0) continue;
-    const Vec3 half_kick = (0.5 * dt * inv_m) * f;
-    store.position[i] += dt * (store.velocity[i] + half_kick);
-    if (stays.outside(store.position[i])) domain.wrap(store.position[i]);
-    store.velocity[i] += 2.0 * half_kick;
-    dt_over_inertia_[i] = dt / store.inertia[i];
-    store.angular_velocity[i] += dt_over_inertia_[i] * t;
+  // The arrays through pointers held in registers: Eigen's vector stores may alias anything, so
+  // the compiler would otherwise load every array's address again after each of them.
+  double* const inverse_mass = inverse_mass_.data();
+  double* const dt_over_inertia = dt_over_inertia_.data();
+  Vec3* const kept_force = force_.data();
+  Vec3* const kept_torque = torque_.data();
+  {
+    Vec3* const x = store.position.data();
+    Vec3* const v = store.velocity.data();
+    Vec3* const w = store.angular_velocity.data();
+    const double* const inertia = store.inertia.data();
+    for (std::size_t i = 0; i < n; ++i) {
+      const double inv_m = store.inverse_mass(i);
+      inverse_mass[i] = inv_m;
+      if (inv_m == 0.0) continue;
+      const Vec3 half_kick = (0.5 * dt * inv_m) * kept_force[i];
+      x[i] += dt * (v[i] + half_kick);
+      if (stays.outside(x[i])) domain.wrap(x[i]);
+      v[i] += 2.0 * half_kick;
+      dt_over_inertia[i] = dt / inertia[i];
+      w[i] += dt_over_inertia[i] * kept_torque[i];
+    }
   }
   evaluate(HistoryStage::kSingle);
-  const auto& f = field.force();
-  const auto& t = field.torque();
+  // The evaluation may append ghosts to the store, moving its arrays: their addresses again.
+  Vec3* const v = store.velocity.data();
+  Vec3* const w = store.angular_velocity.data();
+  const Vec3* const f = field.force().data();
+  const Vec3* const t = field.torque().data();
   for (std::size_t i = 0; i < n; ++i) {
     // The evaluation keeps the first n slots as they were, so the step's own 1/m and dt/I
     // still belong to them. (0.5 dt) / I is 0.5 (dt / I) exactly: halving rounds nothing.
-    const double inv_m = inverse_mass_[i];
+    const double inv_m = inverse_mass[i];
     if (inv_m != 0.0) {
-      store.velocity[i] += (0.5 * dt * inv_m) * (f[i] - force_[i]);
-      store.angular_velocity[i] += (0.5 * dt_over_inertia_[i]) * (t[i] - torque_[i]);
+      v[i] += (0.5 * dt * inv_m) * (f[i] - kept_force[i]);
+      w[i] += (0.5 * dt_over_inertia[i]) * (t[i] - kept_torque[i]);
     }
-    force_[i] = f[i];
-    torque_[i] = t[i];
+    kept_force[i] = f[i];
+    kept_torque[i] = t[i];
   }
 }
 
