@@ -176,6 +176,13 @@ void ContactForceField::for_each_wall_contact(const ParticleStore& store, Contac
   }
 }
 
+// Inlined into the batched pass's walk, whose pointers would otherwise all be loaded again
+// after the call.
+[[gnu::always_inline]] inline ContactHistoryEntry* ContactForceField::touch_listed_history(std::int64_t a, std::int64_t b,
+                                                                                     std::uint32_t list_index) {
+  return list_index < history_.pinned_count() ? history_.touch_pinned(list_index, a, b) : history_.touch(a, b);
+}
+
 void ContactForceField::touch_history(const ParticleStore& store, Contact& c) {
   if (!c.is_wall && store.id[c.i] > store.id[c.partner]) {
     // Canonical orientation (see the header): the same contact seen from the other side.
@@ -185,10 +192,6 @@ void ContactForceField::touch_history(const ParticleStore& store, Contact& c) {
   }
   const std::int64_t other = c.is_wall ? ContactHistory::wall_key(c.partner) : store.id[c.partner];
   c.history = touch_listed_history(store.id[c.i], other, c.list_index);
-}
-
-ContactHistoryEntry* ContactForceField::touch_listed_history(std::int64_t a, std::int64_t b, std::uint32_t list_index) {
-  return list_index < history_.pinned_count() ? history_.touch_pinned(list_index, a, b) : history_.touch(a, b);
 }
 
 template <class TangentialLanes>
