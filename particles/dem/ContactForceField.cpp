@@ -10,12 +10,10 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <limits>
 #include <stdexcept>
 #include <string>
 #include <type_traits>
-
 
 namespace grainwave::particles::dem {
 
