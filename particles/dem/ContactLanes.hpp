@@ -153,7 +153,8 @@ template <class V>
 
 /// Touching pairs of one batch, then their forces (structure of arrays).
 struct PairBatch {
-  static constexpr int kSize = 64;  // a multiple of kMaxWidth
+  static constexpr int kSize = 64;
+  static_assert(kSize % kMaxWidth == 0, "a full batch needs no padding at any width");
   int count = 0;
   std::uint32_t i[kSize], j[kSize];  // as listed
   alignas(64) double dx[kSize], dy[kSize], dz[kSize], distance2[kSize];
@@ -300,24 +301,24 @@ struct CoulombSpringLanes {
 
 /// The forces of the batch's first `count` contacts (a multiple of W, padded), W at a time.
 template <int W, class TangentialLanes>
-[[gnu::always_inline]] inline void batch_lane_forces(PairBatch& b, int count, const LaneInputs& in,
-                                                     const TangentialLanes& tangential) {
+[[gnu::always_inline]] inline void forces_in_lanes_of(PairBatch& b, int count, const LaneInputs& in,
+                                                      const TangentialLanes& tangential) {
   for (int l = 0; l < count; l += W) tangential(b, l, lane_contact<Lanes<W>>(b, l, in));
 }
 template <class TangentialLanes>
 void batch_lane_forces_sse2(PairBatch& b, int count, const LaneInputs& in, const TangentialLanes& tangential) {
-  batch_lane_forces<2>(b, count, in, tangential);
+  forces_in_lanes_of<2>(b, count, in, tangential);
 }
 #if GRAINWAVE_WIDE_LANES
 template <class TangentialLanes>
 [[gnu::target("avx2")]] void batch_lane_forces_avx2(PairBatch& b, int count, const LaneInputs& in,
                                                     const TangentialLanes& tangential) {
-  batch_lane_forces<4>(b, count, in, tangential);
+  forces_in_lanes_of<4>(b, count, in, tangential);
 }
 template <class TangentialLanes>
 [[gnu::target("avx512f")]] void batch_lane_forces_avx512(PairBatch& b, int count, const LaneInputs& in,
                                                         const TangentialLanes& tangential) {
-  batch_lane_forces<8>(b, count, in, tangential);
+  forces_in_lanes_of<8>(b, count, in, tangential);
 }
 #endif
 
