@@ -17,10 +17,12 @@
 // full rescan of that particle when its time comes. Impulses: CollisionImpulse.hpp.
 //
 // Speed (the pair scan is most of the work; bench/bench_hardsphere.cpp measures it): each cell
-// owns a fixed block of ints, its occupancy followed by its particles' indices. A scan lists the
+// owns a fixed block of ints, its occupancy followed by its particles' indices, and a head word
+// that names its particle when it holds exactly one (most occupied cells). A scan lists the
 // adjacent cells (from a grid padded with one layer of wrapped or empty cells, or, for interior
-// cells of large grids, by index arithmetic), gathers their particles by copying whole blocks and
-// advancing by the occupancy (no branch per cell, no list chasing), and takes all contact times
+// cells of large grids, by index arithmetic), gathers their particles from the head words
+// (4 bytes a cell, which mostly stay in cache) and the blocks of the few cells holding several
+// (no list chasing), and takes all contact times
 // in one pass without data-dependent branches (minimum image and "never" by selects). Where the
 // machine has AVX2 (x86-64, picked at run time) that pass reads four candidates' Flight lines and
 // transposes them in registers into columns; elsewhere it copies the flight states into columns
@@ -31,7 +33,9 @@
 // (rare: blocks start with room above the fullest cell at binning). For large N every event's
 // reads are cache misses, so what an event touches of a particle is packed into one line each
 // (Flight, Pending, Spin), and the large arrays sit on huge pages (core/HugePageAllocator.hpp):
-// at N = 97 556 these took bench_hardsphere from 0.40 M to about 0.49 M collisions/s.
+// at N = 97 556 these took bench_hardsphere from 0.40 M to about 0.49 M collisions/s, and the
+// head words (which spare the scan 6 MB of blocks there) from about 0.42 M to 0.49 M on a later
+// machine.
 #include <array>
 #include <cstdint>
 #include <vector>
@@ -96,6 +100,10 @@ class EventDrivenCollider {
   static constexpr int kSlotChunk = 8;  ///< gather() copies blocks in chunks of this many slots
   static constexpr int kScanLanes = 4;  ///< scan() pads its candidates to a multiple of this
   static constexpr std::size_t kCachedPaddedCells = 1 << 16;  ///< 256 KiB of cell indices
+  static constexpr int kEmptyHead = -1;  ///< head_ of an empty cell
+  static constexpr int head_word(int occupied, int first) {
+    return occupied == 1 ? first : kEmptyHead - occupied;
+  }
 
   /// Compact per-particle flight state (one cache line): what the pair scan reads, as two rows
   /// of four doubles (contact_times_avx2() loads them whole).
@@ -194,6 +202,10 @@ class EventDrivenCollider {
   int block_ = 8;                            ///< ints per cell block, a multiple of kSlotChunk
   HugePageVector<int> blocks_;                  ///< per cell: occupancy, then particles; spare chunk
   HugePageVector<int> slot_of_;                 ///< index into blocks_ of each particle
+  /// Per cell (and the empty one): the particle if it holds exactly one, else kEmptyHead minus
+  /// the occupancy. What a scan reads of a cell: 4 bytes (against a block of 32 or more, so they
+  /// mostly stay in cache), and the cell's block only where it holds several.
+  HugePageVector<int> head_;
   std::vector<int> candidates_;              ///< scratch of gather(): 27 whole blocks and padding
   CandidateColumns columns_;                 ///< scratch of scan()
   int stencil_size_ = 27;                    ///< adjacent cells of a cell, itself included
