@@ -115,9 +115,7 @@ BlockForest<Dim>::BlockForest(ForestConfig<Dim> config) : config_(config) {
 
 template <int Dim>
 std::optional<std::size_t> BlockForest<Dim>::find(const Key& key) const {
-  const auto it = index_.find(key);
-  if (it == index_.end()) return std::nullopt;
-  return it->second;
+  return index_.find(key);
 }
 
 template <int Dim>
@@ -352,15 +350,14 @@ void BlockForest<Dim>::sort_and_index() {
   order.reserve(leaves_.size());
   for (const Key& k : leaves_) order.emplace_back(curve_index(k), k);
   std::sort(order.begin(), order.end());
-  index_.clear();
-  index_.reserve(order.size());
+  index_.clear(order.size());
   leaf_neighbours_.clear();  // the leaves' indices change
   leaf_neighbours_known_.clear();
   curve_.resize(order.size());
   for (std::size_t i = 0; i < order.size(); ++i) {
     leaves_[i] = order[i].second;
     curve_[i] = order[i].first;
-    index_.emplace(leaves_[i], i);
+    index_.insert(leaves_[i], i);
   }
 }
 

@@ -19,7 +19,6 @@
 #include <cstdint>
 #include <optional>
 #include <span>
-#include <unordered_map>
 #include <vector>
 
 namespace grainwave::wavelet {
@@ -52,6 +51,48 @@ struct AdaptCounts {
   int coarsened = 0;  ///< families replaced by their parent
 };
 
+/// Key -> leaf index, open addressing with linear probing over a power-of-two table at most half
+/// full: a lookup is a hash, a mask and usually one 16-byte slot. (std::unordered_map's prime
+/// modulo and node chase made its lookups a tenth of an adaptation cycle around moving bodies.)
+template <int Dim>
+class LeafIndex {
+ public:
+  void clear(std::size_t expected) {
+    std::size_t capacity = 16;
+    while (capacity < 2 * expected) capacity *= 2;
+    slots_.assign(capacity, Slot{});
+    mask_ = capacity - 1;
+    size_ = 0;
+  }
+  /// Adds key -> leaf unless the key is there already (then the first stays, and size() shows
+  /// the duplicate: tiles_domain() relies on it). At most the count given to clear().
+  void insert(const BlockKey<Dim>& key, std::size_t leaf) {
+    std::size_t at = BlockKeyHash<Dim>{}(key) & mask_;
+    for (; slots_[at].level >= 0; at = (at + 1) & mask_)
+      if (slots_[at].level == key.level && slots_[at].morton == key.morton) return;
+    slots_[at] = Slot{key.morton, key.level, static_cast<std::uint32_t>(leaf)};
+    ++size_;
+  }
+  std::optional<std::size_t> find(const BlockKey<Dim>& key) const {
+    for (std::size_t at = BlockKeyHash<Dim>{}(key) & mask_;; at = (at + 1) & mask_) {
+      const Slot& slot = slots_[at];
+      if (slot.level < 0) return std::nullopt;
+      if (slot.level == key.level && slot.morton == key.morton) return slot.leaf;
+    }
+  }
+  std::size_t size() const { return size_; }
+
+ private:
+  struct Slot {
+    std::uint64_t morton = 0;
+    std::int32_t level = -1;  ///< -1: empty
+    std::uint32_t leaf = 0;
+  };
+  std::vector<Slot> slots_{16};
+  std::size_t mask_ = 15;
+  std::size_t size_ = 0;
+};
+
 template <int Dim>
 class BlockForest {
  public:
@@ -64,7 +105,7 @@ class BlockForest {
   std::span<const Key> leaves() const { return leaves_; }
   std::size_t size() const { return leaves_.size(); }
   std::optional<std::size_t> find(const Key& key) const;
-  bool is_leaf(const Key& key) const { return index_.contains(key); }
+  bool is_leaf(const Key& key) const { return index_.find(key).has_value(); }
 
   /// Blocks along axis a at a level, and the same-level key shifted by `direction` (wrapped on
   /// periodic axes; empty when it leaves a non-periodic domain).
@@ -121,7 +162,7 @@ class BlockForest {
   ForestConfig<Dim> config_;
   int curve_bits_ = 0;  // bits per axis of anchors at max_level
   std::vector<Key> leaves_;
-  std::unordered_map<Key, std::size_t, BlockKeyHash<Dim>> index_;
+  LeafIndex<Dim> index_;
   std::vector<std::uint64_t> curve_;  // per leaf, its curve_index
   mutable std::vector<std::vector<Neighbour<Dim>>> leaf_neighbours_;  // leaf_neighbours' cache
   mutable std::vector<char> leaf_neighbours_known_;
