@@ -153,9 +153,9 @@ void BlockForest<Dim>::neighbours(const Key& leaf, std::vector<Neighbour<Dim>>& 
 
 template <int Dim>
 const std::vector<Neighbour<Dim>>& BlockForest<Dim>::leaf_neighbours(std::size_t leaf) const {
-  if (leaf_neighbours_.size() != leaves_.size()) {  // emptied by sort_and_index
-    leaf_neighbours_.assign(leaves_.size(), {});
+  if (leaf_neighbours_known_.size() != leaves_.size()) {  // a forest whose leaves were set otherwise
     leaf_neighbours_known_.assign(leaves_.size(), 0);
+    if (leaf_neighbours_.size() < leaves_.size()) leaf_neighbours_.resize(leaves_.size());
   }
   if (!leaf_neighbours_known_[leaf]) {
     neighbours(leaves_[leaf], leaf_neighbours_[leaf]);
@@ -351,8 +351,10 @@ void BlockForest<Dim>::sort_and_index() {
   for (const Key& k : leaves_) order.emplace_back(curve_index(k), k);
   std::sort(order.begin(), order.end());
   index_.clear(order.size());
-  leaf_neighbours_.clear();  // the leaves' indices change
-  leaf_neighbours_known_.clear();
+  // The leaves' indices change: every cached list is stale, but keeps its storage (a moving
+  // grid changes its leaves most cycles, and a fresh list per leaf was a tenth of a 1D cycle).
+  leaf_neighbours_known_.assign(order.size(), 0);
+  if (leaf_neighbours_.size() < order.size()) leaf_neighbours_.resize(order.size());
   curve_.resize(order.size());
   for (std::size_t i = 0; i < order.size(); ++i) {
     leaves_[i] = order[i].second;
