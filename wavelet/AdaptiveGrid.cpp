@@ -1328,7 +1328,7 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_with_tags(std::span<const AdaptTag> tags) {
   const bool keep_magnitudes = cycle_magnitudes_live_ && cycle_magnitudes_known_.size() == old_keys.size();
   std::vector<double> magnitudes_now;
   std::vector<char> magnitudes_known_now;
-  if (keep_magnitudes) {
+  if (cycle_magnitudes_live_) {
     magnitudes_now.assign(local_keys_.size() * static_cast<std::size_t>(F), 0.0);
     magnitudes_known_now.assign(local_keys_.size(), 0);
   }
@@ -1428,13 +1428,9 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_with_tags(std::span<const AdaptTag> tags) {
       }
     }
   }
-  if (cycle_magnitudes_live_) {  // known only where moved above (or none, if they were unknown)
+  if (cycle_magnitudes_live_) {  // known only where moved above
     cycle_magnitudes_ = std::move(magnitudes_now);
     cycle_magnitudes_known_ = std::move(magnitudes_known_now);
-    if (!keep_magnitudes) {
-      cycle_magnitudes_.assign(local_keys_.size() * static_cast<std::size_t>(F), 0.0);
-      cycle_magnitudes_known_.assign(local_keys_.size(), 0);
-    }
   }
   build_ghost_plan(std::move(plan_), old_keys);
   // A block whose rows were copied from the old plan is unchanged, as is every leaf its rows
