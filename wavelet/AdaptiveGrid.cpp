@@ -950,25 +950,11 @@ std::vector<double> AdaptiveGrid<Dim>::field_scales(const ThresholdConfig& th) c
   std::vector<double> scale(F, 1.0);
   if (th.normalisation == Normalisation::kAbsolute) return scale;
   std::vector<double> local(F, 0.0), global(F, 0.0);
-  // Max is exact: any order and grouping give the same, so cached terms change nothing.
-  auto magnitude = [&](std::size_t f, std::size_t s) {
-    return interior_largest_magnitude(data_[f].data() + s * block_volume_, Dim, config_.block_size, layout_.ghosts);
-  };
-  if (cycle_magnitudes_live_) {
-    if (cycle_magnitudes_known_.size() != local_blocks() || cycle_magnitudes_.size() != local_blocks() * F) {
-      cycle_magnitudes_.assign(local_blocks() * F, 0.0);
-      cycle_magnitudes_known_.assign(local_blocks(), 0);
-    }
-    for (std::size_t s = 0; s < local_blocks(); ++s) {
-      if (!cycle_magnitudes_known_[s])
-        for (std::size_t f = 0; f < F; ++f) cycle_magnitudes_[s * F + f] = magnitude(f, s);
-      cycle_magnitudes_known_[s] = 1;
-      for (std::size_t f = 0; f < F; ++f) local[f] = std::max(local[f], cycle_magnitudes_[s * F + f]);
-    }
-  } else {
-    for (std::size_t f = 0; f < F; ++f)
-      for (std::size_t s = 0; s < local_blocks(); ++s) local[f] = std::max(local[f], magnitude(f, s));
-  }
+  // Max is exact: any order gives the same.
+  for (std::size_t f = 0; f < F; ++f)
+    for (std::size_t s = 0; s < local_blocks(); ++s)
+      local[f] = std::max(local[f], interior_largest_magnitude(data_[f].data() + s * block_volume_, Dim,
+                                                               config_.block_size, layout_.ghosts));
   MPI_Allreduce(local.data(), global.data(), static_cast<int>(F), MPI_DOUBLE, MPI_MAX, comm_);
   for (std::size_t f = 0; f < F; ++f) {
     double m = global[f];
@@ -1123,19 +1109,6 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_cycle(const ThresholdConfig& th, const Forc
   // So is the forced region's verdict on each leaf (the caller's predicate, often the costlier
   // part of a pass around moving bodies).
   std::vector<char> near_sig, forced_leaves;
-  // The field scales' per-block terms live for this cycle only: the caller writes the fields
-  // between cycles.
-  struct CycleMagnitudes {
-    AdaptiveGrid& grid;
-    explicit CycleMagnitudes(AdaptiveGrid& g) : grid(g) {
-      grid.cycle_magnitudes_live_ = true;
-      grid.cycle_magnitudes_known_.assign(grid.local_blocks(), 0);
-      grid.cycle_magnitudes_.resize(grid.local_blocks() * static_cast<std::size_t>(grid.fields()));
-    }
-    ~CycleMagnitudes() { grid.cycle_magnitudes_live_ = false; }
-    CycleMagnitudes(const CycleMagnitudes&) = delete;
-    CycleMagnitudes& operator=(const CycleMagnitudes&) = delete;
-  } live(*this);
   const AdaptCounts coarsened = adapt_pass(th, AdaptPass::kCoarsen, forced, true, &near_sig, &forced_leaves);
   const bool unchanged = coarsened.refined == 0 && coarsened.coarsened == 0;
   const AdaptCounts refined = adapt_pass(th, AdaptPass::kRefine, forced, true, unchanged ? &near_sig : nullptr,
@@ -1324,30 +1297,15 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_with_tags(std::span<const AdaptTag> tags) {
   std::vector<std::vector<std::int64_t>> head(P);
   std::vector<std::vector<double>> body(P);
   std::array<std::array<AxisStencil, kMaxBlockSize>, Dim> st;
-  // In a cycle, the field scales' terms of the blocks that stay as they were move with them.
-  const bool keep_magnitudes = cycle_magnitudes_live_ && cycle_magnitudes_known_.size() == old_keys.size();
-  std::vector<double> magnitudes_now;
-  std::vector<char> magnitudes_known_now;
-  if (cycle_magnitudes_live_) {
-    magnitudes_now.assign(local_keys_.size() * static_cast<std::size_t>(F), 0.0);
-    magnitudes_known_now.assign(local_keys_.size(), 0);
-  }
   for (std::size_t s = 0; s < old_keys.size(); ++s) {
     const Key key = old_keys[s];
     if (const auto leaf = forest_.find(key)) {
       if (owner(*leaf) == rank_) {
         // Unchanged and still here (most blocks): the whole array at once; fill_ghosts below
         // writes every ghost point again.
-        const std::size_t slot = *leaf - first_leaf_;
         for (std::size_t f = 0; f < static_cast<std::size_t>(F); ++f)
           std::copy_n(old_data[f].begin() + static_cast<std::ptrdiff_t>(s * block_volume_), block_volume_,
-                      data_[f].begin() + static_cast<std::ptrdiff_t>(slot * block_volume_));
-        if (keep_magnitudes && cycle_magnitudes_known_[s]) {
-          const auto Fu = static_cast<std::size_t>(F);
-          std::copy_n(cycle_magnitudes_.begin() + static_cast<std::ptrdiff_t>(s * Fu), Fu,
-                      magnitudes_now.begin() + static_cast<std::ptrdiff_t>(slot * Fu));
-          magnitudes_known_now[slot] = 1;
-        }
+                      data_[f].begin() + static_cast<std::ptrdiff_t>((*leaf - first_leaf_) * block_volume_));
         continue;
       }
       auto& out = body[static_cast<std::size_t>(owner(*leaf))];
@@ -1427,10 +1385,6 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_with_tags(std::span<const AdaptTag> tags) {
         });
       }
     }
-  }
-  if (cycle_magnitudes_live_) {  // known only where moved above
-    cycle_magnitudes_ = std::move(magnitudes_now);
-    cycle_magnitudes_known_ = std::move(magnitudes_known_now);
   }
   build_ghost_plan(std::move(plan_), old_keys);
   // A block whose rows were copied from the old plan is unchanged, as is every leaf its rows

@@ -327,12 +327,6 @@ class AdaptiveGrid {
   mutable std::vector<std::pair<int, std::ptrdiff_t>> parent_sources_;  // ... and where its points come from
   mutable std::vector<std::uint8_t> bound_rest_;  // block_significance: calls left without the range bound
   mutable std::vector<int> first_field_;  // block_significance: the field it tries first
-  /// Within one adapt_cycle (live), field_scales' per-block terms: the interior's largest
-  /// magnitude per slot and field, and whether it is known. Blocks an adaptation leaves as they
-  /// were keep theirs, so the refine pass after a changing coarsen pass computes only new blocks'.
-  mutable std::vector<double> cycle_magnitudes_;
-  mutable std::vector<char> cycle_magnitudes_known_;
-  bool cycle_magnitudes_live_ = false;
 };
 
 template <int Dim>
