@@ -37,7 +37,11 @@ def main():
     args = [a for a in sys.argv[1:] if not a.startswith("--")]
     if not args:
         sys.exit(__doc__)
-    repeats = next((int(a.split("=", 1)[1]) for a in sys.argv[1:] if a.startswith("--repeats=")), 3)
+    repeats = next((a.split("=", 1)[1] for a in sys.argv[1:] if a.startswith("--repeats=")), "3")
+    if not repeats.isdigit() or int(repeats) < 1:
+        print(f"bench/adapt_cost.py: --repeats needs a positive whole number, not '{repeats}'", file=sys.stderr)
+        sys.exit(2)
+    repeats = int(repeats)
     exe = args[0]
     out = args[1] if len(args) > 1 else "out/adapt_cost"
     os.makedirs(out, exist_ok=True)

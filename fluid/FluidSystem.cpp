@@ -308,8 +308,6 @@ class FluidModel : public io::System {
   double cv_time_ = std::numeric_limits<double>::quiet_NaN();
 
   bool penalized() const { return !penalization_.empty(); }
-  /// A fixed-step RK scheme (rk4, ssprk3): its first stage reads the grid as advance() left it.
-  bool fixed_rk() const { return integrator_->scheme() == TimeScheme::kRk4 || integrator_->scheme() == TimeScheme::kSspRk3; }
   /// Weight of the characteristic terms at a point of mask chi.
   double characteristic_weight(double chi) const { return std::min(1.0, penalization_.characteristic_gain * chi); }
   /// The largest body mask at x (chi, body, inward normal, body velocity); chi = 0 outside all.
@@ -1625,7 +1623,7 @@ void FluidModel<Dim>::advance(double t, double dt) {
     pack(y);
     // A fixed RK step's first stage is f(t, y) at this very vector (TimeIntegrator.cpp); ARKODE's
     // schemes call f on vectors of their own.
-    rhs_input_on_grid_ = fixed_rk() && grid_is_current_state_ ? y.data() : nullptr;
+    rhs_input_on_grid_ = integrator_->takes_fixed_steps() && grid_is_current_state_ ? y.data() : nullptr;
     grid_is_current_state_ = false;
     limiter_dt_ = dt;
     flag = integrator_->step(t, dt);
@@ -1642,7 +1640,7 @@ void FluidModel<Dim>::advance(double t, double dt) {
   {
     // Every ghost, for the adaptation and the forces; a fixed RK step's first stage reads them
     // as its own ghost fill (evaluate_rhs skips it then), so it is timed as that fill.
-    ScopedTimer timer(timers_, fixed_rk() ? "rhs: ghosts" : "ghosts after step");
+    ScopedTimer timer(timers_, integrator_->takes_fixed_steps() ? "rhs: ghosts" : "ghosts after step");
     grid_->fill_ghosts();
   }
   bool walls_changed = false;

@@ -95,7 +95,7 @@ int arkode_preconditioner_solve(realtype t, N_Vector y, N_Vector, N_Vector r, N_
 
 std::span<double> TimeIntegrator::state(std::size_t local_size) {
   Impl& m = *impl_;
-  if (m.scheme == TimeScheme::kRk4 || m.scheme == TimeScheme::kSspRk3) {
+  if (takes_fixed_steps()) {
     if (m.state.size() != local_size) {
       for (auto* v : {&m.state, &m.stage, &m.k1, &m.k2, &m.k3}) v->assign(local_size, 0.0);
     }
@@ -204,7 +204,7 @@ int imex_step(TimeIntegrator::Impl& m, double t, double dt) {
 
 int TimeIntegrator::step(double t, double dt) {
   Impl& m = *impl_;
-  if (m.scheme == TimeScheme::kRk4 || m.scheme == TimeScheme::kSspRk3) {
+  if (takes_fixed_steps()) {
     // ARKODE's per-step overhead for a fixed step (error weights, norms and vector reductions
     // it does not need here) was 15-17% of a 2D run: fixed steps are taken here instead.
     try {

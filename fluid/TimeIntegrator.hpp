@@ -66,6 +66,8 @@ class TimeIntegrator {
   };
   ImplicitCounts implicit_counts() const;
   TimeScheme scheme() const;
+  /// kRk4 or kSspRk3: fixed CFL steps taken here, not by ARKODE (see step()).
+  bool takes_fixed_steps() const { return scheme() == TimeScheme::kRk4 || scheme() == TimeScheme::kSspRk3; }
   std::string describe() const;
 
   struct Impl;  ///< state vectors and ARKODE's memory (opaque: keeps SUNDIALS headers out of this one)
