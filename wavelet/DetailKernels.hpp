@@ -3,7 +3,8 @@
 // array (002 §2.2.2; d = u - P u_{j-1} in AdaptiveGrid's conventions). Most rows of most blocks
 // are centred Deslauriers-Dubuc rows with fixed offsets, so the separable prediction runs as
 // contiguous loops; the few one-sided rows near a bounded domain edge are then computed from
-// their own stencils. The kernels are compiled for AVX2 and the baseline, picked at run time.
+// their own stencils. The kernels are compiled for AVX2 and the baseline (the 2D maxima also for
+// AVX-512F), picked at run time.
 // Every prediction is the sum AdaptiveGrid::predict_array forms (started at 0, accumulated in
 // stencil order, no FMA), so the maxima are bitwise those of its coefficients.
 #include <array>

@@ -1,5 +1,5 @@
 // The per-block right-hand-side kernels as the solver calls them (BlockKernels.hpp: compiled once
-// per instruction set, AVX2 where the CPU has it) against the same templates called directly,
+// per instruction set, AVX-512F or AVX2 where the CPU has it) against the same templates called directly,
 // which are compiled for the baseline instruction set: BlockKernels.hpp promises bitwise the same
 // results on any x86-64 machine. (Checked to fail when the clone is built with FMA contraction:
 // 9-167 entries then differ.) The state is rough enough to switch on the shock sensor's dissipation in both

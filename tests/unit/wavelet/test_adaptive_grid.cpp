@@ -686,7 +686,7 @@ TEST(AdaptiveGrid, SingleBlockPeriodicGhostsWrap) {
 
 namespace {
 
-/// The tagging kernel (fixed centred offsets, one-sided rows from their stencils, AVX2 where
+/// The tagging kernel (fixed centred offsets, one-sided rows from their stencils, AVX2 or AVX-512F where
 /// available) against the general separable prediction: on adapted grids with bounded and
 /// periodic edges, every block's largest coefficient is bitwise the largest |block_details|.
 template <int Dim>
