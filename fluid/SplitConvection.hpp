@@ -71,15 +71,21 @@ template <int Dim>
 inline void block_primitives(const std::array<const double*, Dim + 2>& q, std::size_t volume, double gamma,
                              double* rho, const std::array<double*, Dim>& u, double* e, double* p) {
   const double gm1 = gamma - 1;
+  // Local copies of the pointers: the stores must not seem to change them (the loop was left
+  // scalar when each iteration reloaded q[f] and u[a] through the references), and ivdep: no
+  // output array overlaps an input.
+  const std::array<const double*, Dim + 2> in = q;
+  const std::array<double*, Dim> velocity = u;
+#pragma GCC ivdep
   for (std::size_t at = 0; at < volume; ++at) {
-    const double r = q[0][at], inv_r = 1 / r;
+    const double r = in[0][at], inv_r = 1 / r;
     double kinetic = 0;
     for (std::size_t a = 0; a < static_cast<std::size_t>(Dim); ++a) {
-      const double ua = q[a + 1][at] * inv_r;
-      u[a][at] = ua;
+      const double ua = in[a + 1][at] * inv_r;
+      velocity[a][at] = ua;
       kinetic += ua * ua;
     }
-    const double E = q[Dim + 1][at];
+    const double E = in[Dim + 1][at];
     rho[at] = r;
     e[at] = E * inv_r;
     p[at] = gm1 * (E - 0.5 * r * kinetic);
