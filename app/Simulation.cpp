@@ -304,8 +304,18 @@ int Simulation::run() {
   while (t_end_ - clock_.t > t_tolerance && (max_steps_ == 0 || clock_.step < max_steps_)) {
     if (debug_kill_during_ == "step" && clock_.step == debug_kill_step_) std::raise(SIGKILL);
     bool hits_output = false;
-    const double dt = choose_dt(hits_output);
-    system_->save_good_state();  // also before a refused step: the failure path restores it
+    // Each part of a step is timed (summary.json's timings_s), so that they add up to the wall
+    // time: the step choice (the stable dt, a reduction over the state), the copy kept for a
+    // failure, the step itself (its modules' own timers) and the state check.
+    double dt = 0;
+    {
+      ScopedTimer timer(system_->timers(), "step size");
+      dt = choose_dt(hits_output);
+    }
+    {
+      ScopedTimer timer(system_->timers(), "last good state");
+      system_->save_good_state();  // also before a refused step: the failure path restores it
+    }
     if (!(dt > 0) || !std::isfinite(dt)) {
       failure = fmt::format("time step {} is not positive and finite", dt);
     } else {
@@ -316,8 +326,10 @@ int Simulation::run() {
         failure = e.what_failed() + (e.where().empty() ? "" : " at " + e.where());
       }
       step_wall_ += step_clock.seconds();
-      if (failure.empty())
+      if (failure.empty()) {
+        ScopedTimer timer(system_->timers(), "state check");
         if (auto bad = system_->check_state()) failure = *bad;
+      }
     }
     // All ranks agree on failure or an interrupt before anything is written.
     const int local_flags = (failure.empty() ? 0 : 1) | (g_stop_requested ? 2 : 0);
