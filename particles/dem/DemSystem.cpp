@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -789,19 +790,30 @@ void DemSystem::probe_collision(double dt) {
 }
 
 void DemSystem::remove_leaving_particles() {
-  bool any = false;
+  // Most steps nobody leaves: a read-only pass finds that out, against bounds held in locals
+  // (-inf and +inf where a face is not open), and the keep mask is built only when someone
+  // does. (Writing the mask every step, whose byte stores may alias anything, kept the domain
+  // reloaded per particle and axis: 6% of a curtain_small run.)
   const std::size_t n = store_.size();
+  constexpr double kInfinity = std::numeric_limits<double>::infinity();
+  std::array<double, 3> low{-kInfinity, -kInfinity, -kInfinity}, high{kInfinity, kInfinity, kInfinity};
+  for (int k = 0; k < domain_.dimension; ++k) {
+    const auto a = static_cast<std::size_t>(k);
+    if (domain_.face[a][0] == FaceKind::kOpen) low[a] = domain_.lo[k];
+    if (domain_.face[a][1] == FaceKind::kOpen) high[a] = domain_.hi[k];
+  }
+  const Vec3* position = store_.position.data();
+  auto leaving = [&](std::size_t i) {
+    const Vec3& x = position[i];
+    return (x[0] < low[0]) | (x[0] > high[0]) | (x[1] < low[1]) | (x[1] > high[1]) | (x[2] < low[2]) |
+           (x[2] > high[2]);
+  };
+  bool any = false;
+  for (std::size_t i = 0; i < n; ++i) any |= leaving(i);
+  if (!any) return;
   scratch_use_.assign(n, 1);
   for (std::size_t i = 0; i < n; ++i)
-    for (int k = 0; k < domain_.dimension; ++k) {
-      const auto& f = domain_.face[static_cast<std::size_t>(k)];
-      if ((f[0] == FaceKind::kOpen && store_.position[i][k] < domain_.lo[k]) ||
-          (f[1] == FaceKind::kOpen && store_.position[i][k] > domain_.hi[k])) {
-        scratch_use_[i] = 0;
-        any = true;
-      }
-    }
-  if (!any) return;
+    if (leaving(i)) scratch_use_[i] = 0;
   for (std::size_t i = 0; i < n; ++i)
     if (!scratch_use_[i]) {
       ++tally_.removed;
