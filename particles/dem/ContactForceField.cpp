@@ -143,34 +143,88 @@ GRAINWAVE_FLATTEN void ContactForceField::for_each_contact(const ParticleStore& 
   for_each_wall_contact(store, c, f);
 }
 
+bool ContactForceField::refresh_wall_candidates(const ParticleStore& store) {
+  if (!use_list_) return false;
+  const std::size_t walls = plane_walls_.size() + finite_walls_.size();
+  if (wall_candidates_build_ == verlet_.builds() && wall_candidates_owned_ == owned_end_ &&
+      wall_candidates_walls_ == walls)
+    return true;
+  const double skin = verlet_.skin();
+  const std::size_t n = owned_end_;
+  // Particles within the skin of a periodic face may wrap to the far side: candidates of every
+  // wall (a wall has no periodic image; the particle's position is what it is tested at).
+  auto near_periodic_face = [&](std::size_t i) {
+    for (int k = 0; k < domain_.dimension; ++k) {
+      if (!domain_.periodic(k)) continue;
+      const double x = store.position[i][k];
+      if (x - domain_.lo[k] <= skin || domain_.hi[k] - x <= skin) return true;
+    }
+    return false;
+  };
+  wall_candidates_.clear();
+  wall_begin_.assign(1, 0);
+  // Fixed particles too: one may be released before the next build (the visit skips it while
+  // it is fixed).
+  for (const PlaneWall& wall : plane_walls_) {
+    for (std::size_t i = 0; i < n; ++i) {
+      if (wall.distance(store.position[i]) - store.radius[i] <= skin || near_periodic_face(i))
+        wall_candidates_.push_back(static_cast<std::uint32_t>(i));
+    }
+    wall_begin_.push_back(wall_candidates_.size());
+  }
+  for (const FiniteWall& wall : finite_walls_) {
+    for (std::size_t i = 0; i < n; ++i) {
+      const double reach = store.radius[i] + skin;
+      if ((wall.closest_point(store.position[i]) - store.position[i]).squaredNorm() <= reach * reach ||
+          near_periodic_face(i))
+        wall_candidates_.push_back(static_cast<std::uint32_t>(i));
+    }
+    wall_begin_.push_back(wall_candidates_.size());
+  }
+  wall_candidates_build_ = verlet_.builds();
+  wall_candidates_owned_ = owned_end_;
+  wall_candidates_walls_ = walls;
+  return true;
+}
+
 template <class ContactFunction>
 void ContactForceField::for_each_wall_contact(const ParticleStore& store, Contact& c, ContactFunction&& f) {
   const std::size_t n = owned_end_;  // walls act on owned particles only
+  const bool listed = refresh_wall_candidates(store);
+  // Every particle in slot order, or the wall's candidates (ascending slots, so the contacts
+  // come in the same order and every force sums alike).
+  auto for_each_particle_near = [&](std::size_t wall, auto&& visit) {
+    if (listed) {
+      for (std::size_t k = wall_begin_[wall]; k < wall_begin_[wall + 1]; ++k) visit(wall_candidates_[k]);
+    } else {
+      for (std::size_t i = 0; i < n; ++i) visit(i);
+    }
+  };
   for (std::size_t w = 0; w < plane_walls_.size(); ++w) {
     const PlaneWall& wall = plane_walls_[w];
     if (!wall.enabled) continue;
-    for (std::size_t i = 0; i < n; ++i) {
-      if (store.is_fixed(i)) continue;
+    for_each_particle_near(w, [&](std::size_t i) {
+      if (store.is_fixed(i)) return;
       const double overlap = store.radius[i] - wall.distance(store.position[i]);
-      if (overlap <= 0.0) continue;
+      if (overlap <= 0.0) return;
       wall_contact(store, i, w, wall.velocity, -wall.normal, overlap, c);
       f(c);
-    }
+    });
   }
   for (std::size_t w = 0; w < finite_walls_.size(); ++w) {
     const FiniteWall& wall = finite_walls_[w];
     if (!wall.enabled) continue;
-    for (std::size_t i = 0; i < n; ++i) {
-      if (store.is_fixed(i)) continue;
+    for_each_particle_near(plane_walls_.size() + w, [&](std::size_t i) {
+      if (store.is_fixed(i)) return;
       const Vec3 p = wall.closest_point(store.position[i]);
       const Vec3 d = p - store.position[i];
       const double distance2 = d.squaredNorm();
       const double r = store.radius[i];
-      if (distance2 >= r * r || distance2 == 0.0) continue;
+      if (distance2 >= r * r || distance2 == 0.0) return;
       const double distance = std::sqrt(distance2);
       wall_contact(store, i, plane_walls_.size() + w, wall.velocity, d / distance, r - distance, c);
       f(c);
-    }
+    });
   }
 }
 

@@ -157,6 +157,9 @@ class ContactForceField {
   /// The wall part of for_each_contact (f is handed `c` to fill and pass on).
   template <class ContactFunction>
   void for_each_wall_contact(const ParticleStore& store, Contact& c, ContactFunction&& f);
+  /// With the Verlet list in use: the particles each wall can touch before the list's next
+  /// build, refreshed after each build (wall_candidates_). False without the list.
+  bool refresh_wall_candidates(const ParticleStore& store);
   /// The fused pass's listed particle pairs for the linear spring–dashpot with static friction
   /// or (velocity Verlet's single stage) the Coulomb spring with history, the laws of the
   /// curtain and channel cases, several contacts at a time in SIMD lanes (TangentialLanes, in
@@ -220,6 +223,18 @@ class ContactForceField {
   bool has_ghosts_ = false;
   std::vector<std::uint32_t> visit_order_;  ///< owned and ghost slots merged by id
   bool use_list_ = false;  ///< this evaluation takes its pairs from verlet_
+  /// Per wall (plane walls, then finite ones), the owned particles (ascending slots) within
+  /// their radius plus the list's skin of it, or within the skin of a periodic face (they may
+  /// wrap), when the candidates were taken: until the list's next build none moves more than
+  /// the skin (half of it from the build, and the candidates are taken at or after it), and a
+  /// wall's distance changes no faster than the particle moves, so no other particle can touch
+  /// it. Walls then cost a pass over their candidates instead of over every particle (the
+  /// walls of curtain_small's hopper took 29 % of its run that way). Slots wall_begin_[w] to
+  /// wall_begin_[w + 1] of wall_candidates_.
+  std::vector<std::uint32_t> wall_candidates_;
+  std::vector<std::size_t> wall_begin_;
+  long wall_candidates_build_ = -1;  ///< verlet_.builds() when they were taken
+  std::size_t wall_candidates_owned_ = 0, wall_candidates_walls_ = 0;
   std::vector<Vec3> force_;
   std::vector<Vec3> torque_;
 };

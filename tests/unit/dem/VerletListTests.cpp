@@ -154,6 +154,60 @@ TEST(VerletList, SameForcesAsCellSearchThroughoutAGranularGas) {
   EXPECT_LT(listed.verlet_list().builds(), steps / 5);
 }
 
+// With the Verlet list, walls test only the particles near them when the list was built
+// (ContactForceField::wall_candidates_). A fast gas, every tenth particle fixed, in the box
+// periodic in x and z, with a rectangle standing just inside the periodic face x = 0 (so
+// particles that wrap across it land next to the wall) and a tilted ledge in the middle: at
+// every step the listed field finds the same wall contacts, with the same forces, as the cell
+// search, which tests every particle against every wall.
+TEST(VerletList, WallCandidatesFindEveryWallContact) {
+  const gw::Domain domain = gas_box();
+  const auto model = frictional_model();
+  dem::ContactForceSettings settings;
+  settings.gravity = Vec3(0.0, -1.0, 0.0);
+  dem::ContactForceField driver(model, domain, settings);
+  settings.fused = false;  // the list of contacts is read below
+  dem::ContactForceField cells(model, domain, settings);
+  settings.verlet_skin = 0.2;
+  dem::ContactForceField listed(model, domain, settings);
+  const auto by_the_face = dem::FiniteWall::rectangle(Vec3(0.05, 2.5, 2.5), Vec3::UnitY(), Vec3::UnitZ(), 4.0, 4.0);
+  const auto ledge = dem::FiniteWall::rectangle(Vec3(2.5, 1.25, 2.5), Vec3(3.0, 0.5, 0.0), Vec3::UnitZ(), 3.0, 5.0);
+  for (auto* field : {&driver, &cells, &listed}) {
+    field->finite_walls().push_back(by_the_face);
+    field->finite_walls().push_back(ledge);
+  }
+
+  gw::ParticleStore s = fast_gas_with_fixed(5);
+  dem::VelocityVerlet verlet;
+  const double dt = dem::stable_time_step(s, *model.normal, 50);
+  const int steps = 2000;
+  double worst = 0.0;
+  long wall_contacts = 0, face_wall_contacts = 0;
+  const std::size_t face_wall = listed.plane_walls().size();  // the rectangle's wall index
+  for (int step = 0; step < steps; ++step) {
+    verlet.step(s, driver, dt);
+    cells.evaluate(s, dem::HistoryStage::kSingle, dt);
+    listed.evaluate(s, dem::HistoryStage::kSingle, dt);
+    long walls_here = 0;
+    for (const dem::Contact& c : cells.contacts()) {
+      walls_here += c.is_wall ? 1 : 0;
+      face_wall_contacts += c.is_wall && c.partner == face_wall ? 1 : 0;
+    }
+    std::vector<dem::Contact> listed_walls;
+    for (const dem::Contact& c : listed.contacts())
+      if (c.is_wall) listed_walls.push_back(c);
+    ASSERT_EQ(walls_here, static_cast<long>(listed_walls.size())) << "step " << step;
+    wall_contacts += walls_here;
+    worst = std::max(worst, worst_force_difference(cells, listed, s.size()));
+  }
+  std::printf("wall candidates: %ld wall contacts (%ld with the wall by the periodic face), %ld list builds\n",
+              wall_contacts, face_wall_contacts, listed.verlet_list().builds());
+  EXPECT_LT(worst, 1e-12);  // only the summation order of the pair forces differs
+  EXPECT_GT(face_wall_contacts, 100);
+  EXPECT_GT(wall_contacts, 1000);
+  EXPECT_GT(listed.verlet_list().builds(), 1);
+}
+
 // Most listed pairs skip the minimum image (VerletList flags at the build the pairs that may
 // need it). Through a fast granular gas in a box periodic on all three axes, both with the list
 // managing itself and planned before each step, every touching pair's separation must be the
