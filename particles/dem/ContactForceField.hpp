@@ -229,8 +229,10 @@ class ContactForceField {
   /// the skin (half of it from the build, and the candidates are taken at or after it), and a
   /// wall's distance changes no faster than the particle moves, so no other particle can touch
   /// it. Walls then cost a pass over their candidates instead of over every particle (the
-  /// walls of curtain_small's hopper took 29 % of its run that way). Slots wall_begin_[w] to
-  /// wall_begin_[w + 1] of wall_candidates_.
+  /// walls of curtain_small's hopper took 29 % of its run that way). Walls stand still (their
+  /// velocity is their surface's; switching one on or off needs no new candidates, and a wall
+  /// added or removed renews them), so their geometry must not change between list builds.
+  /// Slots wall_begin_[w] to wall_begin_[w + 1] of wall_candidates_.
   std::vector<std::uint32_t> wall_candidates_;
   std::vector<std::size_t> wall_begin_;
   long wall_candidates_build_ = -1;  ///< verlet_.builds() when they were taken
