@@ -117,19 +117,30 @@ gw::ParticleStore fast_gas_with_fixed(unsigned seed) {
   return s;
 }
 
+/// One model in gas_box() under gravity three ways: `driver` steps the gas, `cells` (the cell
+/// search, every wall against every particle) keeps its list of contacts, and `listed` takes
+/// its pairs from a Verlet list of skin 0.2, by the fused pass or (listed_fused false) keeping
+/// its list of contacts.
+struct CellsAndListed {
+  dem::ContactForceField driver, cells, listed;
+  CellsAndListed(const dem::ContactModel& model, bool listed_fused)
+      : driver(model, gas_box(), with(true, 0.0)), cells(model, gas_box(), with(false, 0.0)),
+        listed(model, gas_box(), with(listed_fused, 0.2)) {}
+  static dem::ContactForceSettings with(bool fused, double skin) {
+    dem::ContactForceSettings s;
+    s.gravity = Vec3(0.0, -1.0, 0.0);
+    s.fused = fused;
+    s.verlet_skin = skin;
+    return s;
+  }
+};
+
 }  // namespace
 
 TEST(VerletList, SameForcesAsCellSearchThroughoutAGranularGas) {
-  const gw::Domain domain = gas_box();
   const auto model = frictional_model();
-  dem::ContactForceSettings settings;
-  settings.gravity = Vec3(0.0, -1.0, 0.0);
-  dem::ContactForceField driver(model, domain, settings);
-  settings.fused = false;  // the list of contacts is read below
-  dem::ContactForceField cells(model, domain, settings);
-  settings.fused = true;
-  settings.verlet_skin = 0.2;
-  dem::ContactForceField listed(model, domain, settings);
+  CellsAndListed fields(model, true);
+  auto& [driver, cells, listed] = fields;
 
   gw::ParticleStore s = granular_gas(11, false);
   dem::VelocityVerlet verlet;
@@ -161,15 +172,9 @@ TEST(VerletList, SameForcesAsCellSearchThroughoutAGranularGas) {
 // every step the listed field finds the same wall contacts, with the same forces, as the cell
 // search, which tests every particle against every wall.
 TEST(VerletList, WallCandidatesFindEveryWallContact) {
-  const gw::Domain domain = gas_box();
   const auto model = frictional_model();
-  dem::ContactForceSettings settings;
-  settings.gravity = Vec3(0.0, -1.0, 0.0);
-  dem::ContactForceField driver(model, domain, settings);
-  settings.fused = false;  // the list of contacts is read below
-  dem::ContactForceField cells(model, domain, settings);
-  settings.verlet_skin = 0.2;
-  dem::ContactForceField listed(model, domain, settings);
+  CellsAndListed fields(model, false);  // the listed field's contacts are read below
+  auto& [driver, cells, listed] = fields;
   const auto by_the_face = dem::FiniteWall::rectangle(Vec3(0.05, 2.5, 2.5), Vec3::UnitY(), Vec3::UnitZ(), 4.0, 4.0);
   const auto ledge = dem::FiniteWall::rectangle(Vec3(2.5, 1.25, 2.5), Vec3(3.0, 0.5, 0.0), Vec3::UnitZ(), 3.0, 5.0);
   for (auto* field : {&driver, &cells, &listed}) {
