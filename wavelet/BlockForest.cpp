@@ -153,7 +153,7 @@ void BlockForest<Dim>::neighbours(const Key& leaf, std::vector<Neighbour<Dim>>& 
 
 template <int Dim>
 const std::vector<Neighbour<Dim>>& BlockForest<Dim>::leaf_neighbours(std::size_t leaf) const {
-  if (leaf_neighbours_known_.size() != leaves_.size()) {  // a forest whose leaves were set otherwise
+  if (leaf_neighbours_known_.size() != leaves_.size()) {  // emptied by sort_and_index
     leaf_neighbours_known_.assign(leaves_.size(), 0);
     if (leaf_neighbours_.size() < leaves_.size()) leaf_neighbours_.resize(leaves_.size());
   }
@@ -353,8 +353,8 @@ void BlockForest<Dim>::sort_and_index() {
   index_.clear(order.size());
   // The leaves' indices change: every cached list is stale, but keeps its storage (a moving
   // grid changes its leaves most cycles, and a fresh list per leaf was a tenth of a 1D cycle).
-  leaf_neighbours_known_.assign(order.size(), 0);
-  if (leaf_neighbours_.size() < order.size()) leaf_neighbours_.resize(order.size());
+  // (leaf_neighbours() marks them unknown and sizes the cache on its next call.)
+  leaf_neighbours_known_.clear();
   curve_.resize(order.size());
   for (std::size_t i = 0; i < order.size(); ++i) {
     leaves_[i] = order[i].second;

@@ -6,18 +6,11 @@
 #include <cstring>
 #include <type_traits>
 
-// Each kernel is cloned for AVX2 and the baseline, and the 2D detail maxima for AVX-512F too;
-// `flatten` inlines the template into each clone, so each is compiled for its instruction set
-// as a whole (fluid/BlockKernels.cpp does the same; no FMA in any clone, so all round alike).
-// Only the 2D maxima gained from 512-bit vectors in bench_wavelet's BM_LargestDetails (6-30 %
+#include "core/KernelClones.hpp"
+
+// The kernels are cloned up to AVX2 (core/KernelClones.hpp), and the 2D detail maxima up to
+// AVX-512F: only they gained from 512-bit vectors in bench_wavelet's BM_LargestDetails (6-30 %
 // less time, the most on 8^2 blocks); the 3D ones lost 2-6 %.
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__SANITIZE_ADDRESS__)
-#define GRAINWAVE_KERNEL_CLONES __attribute__((target_clones("avx2", "default"), flatten))
-#define GRAINWAVE_KERNEL_CLONES_WIDE __attribute__((target_clones("avx512f", "avx2", "default"), flatten))
-#else
-#define GRAINWAVE_KERNEL_CLONES
-#define GRAINWAVE_KERNEL_CLONES_WIDE
-#endif
 
 namespace grainwave::wavelet {
 
@@ -156,7 +149,7 @@ typedef double Lanes __attribute__((vector_size(4 * sizeof(double))));
 
 }  // namespace
 
-GRAINWAVE_KERNEL_CLONES std::pair<double, double> value_range(const double* u, std::size_t n) {
+GRAINWAVE_CLONES_AVX2 std::pair<double, double> value_range(const double* u, std::size_t n) {
   // Two groups of lanes; `v < lo ? v : lo` keeps lo where v is NaN.
   constexpr std::size_t kStep = 2 * 4;
   Lanes lo0 = {u[0], u[0], u[0], u[0]}, hi0 = lo0, lo1 = lo0, hi1 = lo0;
@@ -213,7 +206,7 @@ double largest_magnitude(const double* u, int dim, int bs, int g) {
 
 }  // namespace
 
-GRAINWAVE_KERNEL_CLONES double interior_largest_magnitude(const double* u, int dim, int bs, int g) {
+GRAINWAVE_CLONES_AVX2 double interior_largest_magnitude(const double* u, int dim, int bs, int g) {
   // The same comparisons in the same order whichever is compiled: the same maximum.
   return with_block_size<8, 16, 32>(bs, [&](auto size) { return largest_magnitude<decltype(size)::value>(u, dim, bs, g); });
 }
@@ -233,17 +226,17 @@ std::pair<double, double> dispatch(const double* u, const DetailRows<Dim>& rows,
 
 }  // namespace
 
-GRAINWAVE_KERNEL_CLONES std::pair<double, double> block_detail_maxima(const double* u, const DetailRows<1>& rows,
+GRAINWAVE_CLONES_AVX2 std::pair<double, double> block_detail_maxima(const double* u, const DetailRows<1>& rows,
                                                                       double* along_x, double* last) {
   return dispatch<1>(u, rows, along_x, last);
 }
 
-GRAINWAVE_KERNEL_CLONES_WIDE std::pair<double, double> block_detail_maxima(const double* u, const DetailRows<2>& rows,
+GRAINWAVE_CLONES_AVX512 std::pair<double, double> block_detail_maxima(const double* u, const DetailRows<2>& rows,
                                                                       double* along_x, double* last) {
   return dispatch<2>(u, rows, along_x, last);
 }
 
-GRAINWAVE_KERNEL_CLONES std::pair<double, double> block_detail_maxima(const double* u, const DetailRows<3>& rows,
+GRAINWAVE_CLONES_AVX2 std::pair<double, double> block_detail_maxima(const double* u, const DetailRows<3>& rows,
                                                                       double* along_x, double* last) {
   return dispatch<3>(u, rows, along_x, last);
 }

@@ -153,34 +153,28 @@ bool ContactForceField::refresh_wall_candidates(const ParticleStore& store) {
   const std::size_t n = owned_end_;
   // Particles within the skin of a periodic face may wrap to the far side: candidates of every
   // wall (a wall has no periodic image; the particle's position is what it is tested at).
-  auto near_periodic_face = [&](std::size_t i) {
+  std::vector<char> near_periodic_face(n, 0);
+  for (std::size_t i = 0; i < n; ++i)
     for (int k = 0; k < domain_.dimension; ++k) {
-      if (!domain_.periodic(k)) continue;
       const double x = store.position[i][k];
-      if (x - domain_.lo[k] <= skin || domain_.hi[k] - x <= skin) return true;
+      if (domain_.periodic(k) && (x - domain_.lo[k] <= skin || domain_.hi[k] - x <= skin)) near_periodic_face[i] = 1;
     }
-    return false;
-  };
   wall_candidates_.clear();
   wall_begin_.assign(1, 0);
   // Fixed particles too: one may be released before the next build (the visit skips it while
   // it is fixed).
-  for (const PlaneWall& wall : plane_walls_) {
-    for (std::size_t i = 0; i < n; ++i) {
-      if (wall.distance(store.position[i]) - store.radius[i] <= skin || near_periodic_face(i))
-        wall_candidates_.push_back(static_cast<std::uint32_t>(i));
-    }
+  auto take_where = [&](auto&& near_wall) {
+    for (std::size_t i = 0; i < n; ++i)
+      if (near_periodic_face[i] || near_wall(i)) wall_candidates_.push_back(static_cast<std::uint32_t>(i));
     wall_begin_.push_back(wall_candidates_.size());
-  }
-  for (const FiniteWall& wall : finite_walls_) {
-    for (std::size_t i = 0; i < n; ++i) {
+  };
+  for (const PlaneWall& wall : plane_walls_)
+    take_where([&](std::size_t i) { return wall.distance(store.position[i]) - store.radius[i] <= skin; });
+  for (const FiniteWall& wall : finite_walls_)
+    take_where([&](std::size_t i) {
       const double reach = store.radius[i] + skin;
-      if ((wall.closest_point(store.position[i]) - store.position[i]).squaredNorm() <= reach * reach ||
-          near_periodic_face(i))
-        wall_candidates_.push_back(static_cast<std::uint32_t>(i));
-    }
-    wall_begin_.push_back(wall_candidates_.size());
-  }
+      return (wall.closest_point(store.position[i]) - store.position[i]).squaredNorm() <= reach * reach;
+    });
   wall_candidates_build_ = verlet_.builds();
   wall_candidates_owned_ = owned_end_;
   wall_candidates_walls_ = walls;

@@ -198,10 +198,9 @@ TEST(VerletList, WallCandidatesFindEveryWallContact) {
       walls_here += c.is_wall ? 1 : 0;
       face_wall_contacts += c.is_wall && c.partner == face_wall ? 1 : 0;
     }
-    std::vector<dem::Contact> listed_walls;
-    for (const dem::Contact& c : listed.contacts())
-      if (c.is_wall) listed_walls.push_back(c);
-    ASSERT_EQ(walls_here, static_cast<long>(listed_walls.size())) << "step " << step;
+    const auto listed_walls = std::count_if(listed.contacts().begin(), listed.contacts().end(),
+                                            [](const dem::Contact& c) { return c.is_wall; });
+    ASSERT_EQ(walls_here, listed_walls) << "step " << step;
     wall_contacts += walls_here;
     worst = std::max(worst, worst_force_difference(cells, listed, s.size()));
   }
