@@ -249,7 +249,7 @@ class FluidModel : public io::System {
   bool shock_capturing_ = true;
   bool viscous_ = false;
   double reynolds_ = 0, prandtl_ = 0.72, sutherland_s1_ = 110.4 / 300.0;
-  double capturing_coefficient_ = 1.2, sensor_threshold_ = 0.001;
+  double capturing_coefficient_ = 1.2, sensor_threshold_ = 0.001, background_dissipation_ = 1.0 / 256;
   double h_min_ = 0;  ///< finest spacing (smallest over the axes)
   double sponge_width_ = 0, sponge_strength_ = 0;
   /// On outflow edges relax only density and pressure (the velocity, e.g. a wake, leaves unforced).
@@ -404,6 +404,7 @@ FluidModel<Dim>::FluidModel(const Scene& scene) {
   positivity_limiter_ = s.flag("positivity_limiter");
   capturing_coefficient_ = s.real("capturing_coefficient");
   sensor_threshold_ = s.real("sensor_threshold");
+  background_dissipation_ = s.real("background_dissipation");
 
   const std::string initial = s.text("initial");
   initial_.kind = initial == "riemann" ? InitialKind::kRiemann
@@ -776,6 +777,7 @@ int FluidModel<Dim>::evaluate_rhs(std::span<const double> y, std::span<double> y
   inviscid.capturing = shock_capturing_;
   inviscid.coefficient = capturing_coefficient_;
   inviscid.threshold = sensor_threshold_;
+  inviscid.background = background_dissipation_;
   inviscid.limiter_dt = positivity_limiter_ ? limiter_dt_ : 0.0;
   BlockPrimitives<Dim> w{rho_.data(), {}, p_.data(), e_.data()};
   for (int a = 0; a < Dim; ++a) w.u[static_cast<std::size_t>(a)] = u_[static_cast<std::size_t>(a)].data();
@@ -1564,7 +1566,9 @@ std::string FluidModel<Dim>::describe() const {
   return fmt::format("fluid: {}D {}, 4th-order KEP split central differences, {}, {}, blocks of {}^{}, levels "
                      "{}..{}, {}, {} blocks",
                      Dim, viscous_ ? fmt::format("Navier-Stokes (Re_a {}, Pr {}, Sutherland)", reynolds_, prandtl_) : std::string("Euler"),
-                     shock_capturing_ ? "sensor-localised shock capturing" : "no shock capturing",
+                     shock_capturing_ ? fmt::format("sensor-localised shock capturing with sixth-difference background "
+                                                    "dissipation {:.4g}", background_dissipation_)
+                                      : std::string("no shock capturing"),
                      integrator_->describe(), config_.block_size, Dim, config_.min_level, config_.max_level,
                      adaptive_ ? fmt::format("adapted every {} step(s), eps {}", adapt_every_, threshold_.epsilon)
                                : std::string("uniform"),
@@ -2190,6 +2194,11 @@ void FluidSystem::declare(SceneSchema& schema) {
          "(Hu, Adams & Shu 2013; guaranteed with ssprk3 at cfl <= 0.5)");
   s.real("capturing_coefficient", 1.2, "k of the dissipation flux k lambda s (q_{i+1} - q_i)").at_least(0);
   s.real("sensor_threshold", 0.001, "psi_0: no dissipation where the sensor is below it").at_least(0);
+  s.real("background_dissipation", 1.0 / 256,
+         "kappa_6 of the sixth-difference background dissipation that goes with shock capturing (damps the "
+         "grid-scale waves shocks and contacts shed; 0: none; 1/32 damps them as much as the Rusanov flux)")
+      .at_least(0)
+      .at_most(1.0 / 32);
   s.text("initial", "uniform", "uniform, riemann (two states across a plane), shock (planar shock of shock_mach) "
                                "vortex (isentropic vortex), quadrants (2D Riemann problem), shear_wave (viscous decay) "
                                "acoustic_pulse (a plane sound pulse in the left state, moving along normal; errors against "

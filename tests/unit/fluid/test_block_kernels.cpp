@@ -84,6 +84,7 @@ struct Block {
     settings.capturing = capturing;
     settings.coefficient = 1.2;
     settings.threshold = 1e-3;
+    settings.background = 1.0 / 256;  // the solver's default with capturing
     const double h_value = 1.0 / n;
     settings.limiter_dt = 0.4 * h_value / gf::sound_speed(1.0, 1000, kGamma);  // CFL 0.4 of the blast
     std::array<double, Dim> h{};
