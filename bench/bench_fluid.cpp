@@ -1,10 +1,10 @@
 // Throughput of the fluid right-hand side on one block (items = point-RHS evaluations per
 // second): primitives over the block with ghosts, then the flux-form split convection along every
 // axis with the shock sensor, dissipation, sixth-difference background dissipation and positivity
-// check (the solver's default), and for
-// Navier-Stokes the viscous and heat-conduction terms, in 1D, 2D and 3D. Arguments: block size,
-// sensor and positivity check on (1) or off (0). Whole runs, with ghosts, adaptation and time
-// stepping, report point_rhs_per_s in summary.json (bench/adapt_cost.py prints it).
+// check (the solver's default), and for Navier-Stokes the viscous and heat-conduction terms, in
+// 1D, 2D and 3D. Arguments: block size, shock capturing (sensor, both dissipations) and
+// positivity check on (1) or off (0). Whole runs, with ghosts, adaptation and time stepping,
+// report point_rhs_per_s in summary.json (bench/adapt_cost.py prints it).
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
