@@ -2,6 +2,23 @@
 
 namespace grainwave::particles {
 
+ParticleStore& ParticleStore::operator=(const ParticleStore& other) {
+  // Ten arrays: a new one must be copied here too (this size check fails when one is added).
+  static_assert(sizeof(ParticleStore) == 10 * sizeof(std::vector<double>));
+  if (this == &other) return *this;
+  copy_vec3(position, other.position);
+  copy_vec3(velocity, other.velocity);
+  copy_vec3(angular_velocity, other.angular_velocity);
+  copy_vec3(force, other.force);
+  copy_vec3(torque, other.torque);
+  radius = other.radius;
+  mass = other.mass;
+  inertia = other.inertia;
+  id = other.id;
+  flags = other.flags;
+  return *this;
+}
+
 void ParticleStore::reserve(std::size_t n) {
   position.reserve(n);
   velocity.reserve(n);

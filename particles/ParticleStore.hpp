@@ -10,6 +10,8 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
+#include <type_traits>
 #include <vector>
 
 namespace grainwave::particles {
@@ -28,6 +30,15 @@ inline double solid_inertia(int dimension, double mass, double radius) {
 }
 
 /// Keeps the entries i of a per-slot array with keep[i] != 0, in their order (stable compaction).
+/// to = from for arrays of Vec3 as one block copy. Eigen's vectors are not trivially copyable, so
+/// std::vector's assignment copies them one by one, several times slower; the DEM keeps a copy
+/// of its state every step (the last good state), where that was 10% of a curtain run.
+inline void copy_vec3(std::vector<Vec3>& to, const std::vector<Vec3>& from) {
+  static_assert(sizeof(Vec3) == 3 * sizeof(double) && std::is_standard_layout_v<Vec3>);
+  to.resize(from.size());
+  if (!from.empty()) std::memcpy(static_cast<void*>(to.data()), static_cast<const void*>(from.data()), from.size() * sizeof(Vec3));
+}
+
 template <class T>
 void keep_slots(std::vector<T>& v, const std::vector<std::uint8_t>& keep) {
   std::size_t out = 0;
@@ -44,6 +55,13 @@ void permute_slots(std::vector<T>& v, const std::vector<std::uint32_t>& order) {
 }
 
 struct ParticleStore {
+  ParticleStore() = default;
+  ParticleStore(const ParticleStore&) = default;
+  ParticleStore(ParticleStore&&) = default;
+  ParticleStore& operator=(ParticleStore&&) = default;
+  /// Member-wise, with the Vec3 arrays as block copies (copy_vec3).
+  ParticleStore& operator=(const ParticleStore& other);
+
   std::vector<Vec3> position;
   std::vector<Vec3> velocity;
   std::vector<Vec3> angular_velocity;

@@ -928,11 +928,11 @@ void DemSystem::save_good_state() {
   good_tally_ = tally_;
   good_bins_ = bins_;
   good_flow_csv_ = flow_csv_;
-  good_sample_position_ = sample_position_;
+  copy_vec3(good_sample_position_, sample_position_);
   good_sample_seen_ = sample_seen_;
   if (verlet_.has_forces()) {
-    good_force_ = verlet_.forces();
-    good_torque_ = verlet_.torques();
+    copy_vec3(good_force_, verlet_.forces());
+    copy_vec3(good_torque_, verlet_.torques());
   } else {
     good_force_.clear();
   }
