@@ -414,6 +414,7 @@ inline long add_block_inviscid(const wavelet::ArrayShape<Dim>& shape, int g, int
           }
         }
       });
+      // Below the threshold everywhere in the block the dissipation is exactly zero: skip it.
       if (above) {
         for_each_row<Dim>(shape, lo, hi, [&](std::ptrdiff_t start, int length, const auto&) {
 #pragma GCC ivdep
@@ -422,9 +423,6 @@ inline long add_block_inviscid(const wavelet::ArrayShape<Dim>& shape, int g, int
             psi[i] = std::max(second_difference_sensor(p, i, s), second_difference_sensor(rho, i, s));
           }
         });
-      }
-      // Below the threshold everywhere in the block the dissipation is exactly zero: skip it.
-      if (above) {
         sound_speeds();
         for_each_row<Dim>(shape, face_lo, face_hi, [&](std::ptrdiff_t start, int length, const auto&) {
 #pragma GCC ivdep
