@@ -176,6 +176,41 @@ struct ForceSample {
 };
 constexpr std::size_t kForceColumns = 12;
 
+/// Rewrites every array point (ghosts included) of the grid's local blocks between the conserved
+/// fields (rho, rho u, E) and the primitive ones (rho, u, p), for adapting on primitive
+/// variables: the thresholds then see the velocity and pressure, and refinement interpolates
+/// them (which keeps a positive pressure positive where interpolating E and rho u might not).
+/// Points without a positive finite density (unfilled ghost corners) are left as they are; rho
+/// is the same in both forms, so the two directions skip the same points.
+template <int Dim>
+void convert_fields(wavelet::AdaptiveGrid<Dim>& grid, double gamma, bool to_primitive_form) {
+  constexpr int kF = Dim + 2;
+  for (std::size_t s = 0; s < grid.local_blocks(); ++s) {
+    std::array<std::span<double>, kF> f;
+    for (int k = 0; k < kF; ++k) f[static_cast<std::size_t>(k)] = grid.block(k, s);
+    for (std::size_t at = 0; at < f[0].size(); ++at) {
+      const double rho = f[0][at];
+      if (!(rho > 0) || !std::isfinite(rho)) continue;
+      Conserved<Dim> out{};
+      if (to_primitive_form) {
+        Conserved<Dim> q;
+        for (std::size_t k = 0; k < kF; ++k) q[k] = f[k][at];
+        const auto w = to_primitive<Dim>(q, gamma);
+        out[0] = w.rho;
+        for (std::size_t a = 0; a < static_cast<std::size_t>(Dim); ++a) out[a + 1] = w.u[a];
+        out[kF - 1] = w.p;
+      } else {
+        Primitive<Dim> w;
+        w.rho = rho;
+        for (std::size_t a = 0; a < static_cast<std::size_t>(Dim); ++a) w.u[a] = f[a + 1][at];
+        w.p = f[kF - 1][at];
+        out = to_conserved<Dim>(w, gamma);
+      }
+      for (std::size_t k = 0; k < kF; ++k) f[k][at] = out[k];
+    }
+  }
+}
+
 template <int Dim>
 class FluidModel : public io::System {
  public:
@@ -239,6 +274,7 @@ class FluidModel : public io::System {
   wavelet::GridConfig<Dim> config_;
   wavelet::ThresholdConfig threshold_;
   bool adaptive_ = true;
+  bool adapt_on_primitive_ = false;  ///< thresholds and refinement on (rho, u, p), not (rho, rho u, E)
   int adapt_every_ = 1;
   long steps_taken_ = 0;
   long adapt_cycles_ = 0;  // in this process, like the stage timers
@@ -389,6 +425,7 @@ FluidModel<Dim>::FluidModel(const Scene& scene) {
   config_.fields.push_back("E");
 
   adaptive_ = s.flag("adaptive");
+  adapt_on_primitive_ = s.text("adapt_variables") == "primitive";
   adapt_every_ = static_cast<int>(s.integer("adapt_every"));
   threshold_.epsilon = s.real("epsilon");
   threshold_.coarsen_fraction = s.real("coarsen_fraction");
@@ -568,9 +605,25 @@ FluidModel<Dim>::FluidModel(const Scene& scene) {
     std::copy(q.begin(), q.end(), v.begin());
   };
   if (adaptive_) {
-    grid_->adapt_to_function(threshold_, initial_state, forced_region(0.0));
-    // The safety zone for the first steps (each later cycle leaves one for the next steps).
-    grid_->adapt(threshold_, wavelet::AdaptPass::kRefine, forced_region(0.0));
+    if (adapt_on_primitive_) {
+      // The same on (rho, u, p): the sampled state in primitive form, converted at the end.
+      auto initial_primitive = [&](const auto& x, std::span<double> v) {
+        initial_state(x, v);
+        Conserved<Dim> q;
+        std::copy(v.begin(), v.end(), q.begin());
+        const auto w = to_primitive<Dim>(q, gamma_);
+        v[0] = w.rho;
+        for (int a = 0; a < Dim; ++a) v[static_cast<std::size_t>(a) + 1] = w.u[static_cast<std::size_t>(a)];
+        v[static_cast<std::size_t>(Dim) + 1] = w.p;
+      };
+      grid_->adapt_to_function(threshold_, initial_primitive, forced_region(0.0));
+      grid_->adapt(threshold_, wavelet::AdaptPass::kRefine, forced_region(0.0));
+      convert_fields(*grid_, gamma_, false);
+    } else {
+      grid_->adapt_to_function(threshold_, initial_state, forced_region(0.0));
+      // The safety zone for the first steps (each later cycle leaves one for the next steps).
+      grid_->adapt(threshold_, wavelet::AdaptPass::kRefine, forced_region(0.0));
+    }
   } else {
     grid_->refine_to_uniform();
     grid_->sample(initial_state);
@@ -1570,7 +1623,8 @@ std::string FluidModel<Dim>::describe() const {
                                                     "dissipation {:.4g}", background_dissipation_)
                                       : std::string("no shock capturing"),
                      integrator_->describe(), config_.block_size, Dim, config_.min_level, config_.max_level,
-                     adaptive_ ? fmt::format("adapted every {} step(s), eps {}", adapt_every_, threshold_.epsilon)
+                     adaptive_ ? fmt::format("adapted every {} step(s) on {}, eps {}", adapt_every_,
+                                             adapt_on_primitive_ ? "(rho, u, p)" : "(rho, rho u, E)", threshold_.epsilon)
                                : std::string("uniform"),
                      grid_->global_blocks()) +
          (penalized() ? fmt::format("\n  {} bod{} by characteristic Brinkman penalization (eta_b {:.3g}, eta_c {:.3g}, "
@@ -1658,7 +1712,9 @@ void FluidModel<Dim>::advance(double t, double dt) {
     const auto now = forced_region(t + dt), next = forced_region(t + dt + adapt_every_ * dt);
     wavelet::ForcedRegion<Dim> forced;
     if (now) forced = [&](const auto& lo, const auto& hi) { return now(lo, hi) || next(lo, hi); };
+    if (adapt_on_primitive_) convert_fields(*grid_, gamma_, true);
     const auto changes = grid_->adapt_cycle(threshold_, forced);
+    if (adapt_on_primitive_) convert_fields(*grid_, gamma_, false);
     if (changes.refined + changes.coarsened > 0) ++adapt_cycles_changing_;
     layout_changed();
     // Points a refinement placed on a wall were interpolated. A changed wall point may be read
@@ -1943,7 +1999,15 @@ void FluidModel<Dim>::report(io::Json& counts, io::Json& metrics, double step_wa
   metrics.set("mass_drift", std::abs(mass - stats_.mass0) / std::abs(stats_.mass0));
   metrics.set("energy_drift", std::abs(energy - stats_.energy0) / std::abs(stats_.energy0));
   metrics.set("points_fraction", points / uniform);
-  metrics.set("significant_fraction", static_cast<double>(grid_->significant_points(threshold_)) / uniform);
+  std::int64_t significant = 0;
+  if (adapt_on_primitive_) {  // on the variables the grid adapts to (a copy: this is a report)
+    wavelet::AdaptiveGrid<Dim> primitive(*grid_);
+    convert_fields(primitive, gamma_, true);
+    significant = primitive.significant_points(threshold_);
+  } else {
+    significant = grid_->significant_points(threshold_);
+  }
+  metrics.set("significant_fraction", static_cast<double>(significant) / uniform);
   metrics.set("blocks_max", stats_.blocks_max);
   const double point_rhs = mpi::sum(stats_.point_rhs);
   metrics.set("point_rhs_per_s", step_wall_s > 0 ? point_rhs / step_wall_s : 0.0);
@@ -2167,7 +2231,7 @@ void FluidSystem::declare(SceneSchema& schema) {
       .in_range(4, 6);
   s.flag("adaptive", true, "adapt the grid (false: uniform at max_level)");
   s.integer("adapt_every", 1, "steps between adaptations").at_least(1);
-  s.real("epsilon", 1e-3, "wavelet threshold on the conserved variables").above(0).below(1);
+  s.real("epsilon", 1e-3, "wavelet threshold (on the variables adapt_variables names)").above(0).below(1);
   s.real("coarsen_fraction", 1.0,
          "hysteresis: blocks coarsen only where every coefficient is below coarsen_fraction * epsilon (refining "
          "takes epsilon), so blocks near the threshold stop flickering between levels in a steady flow")
@@ -2175,6 +2239,10 @@ void FluidSystem::declare(SceneSchema& schema) {
       .at_most(1);
   s.text("normalisation", "linf", "threshold scale: linf (global max of rho, |rho u|, E) or absolute")
       .one_of({"linf", "absolute"});
+  s.text("adapt_variables", "conserved",
+         "the fields the thresholds test and refinement interpolates: conserved (rho, rho u, E) or primitive "
+         "(rho, u, p; scales from the global max of rho, |u|, p)")
+      .one_of({"conserved", "primitive"});
   s.real("gamma", 1.4, "ratio of specific heats").above(1);
   s.real("cfl", 0.8, "Courant number of the step: dt = cfl / max sum_a (|u_a| + c) / h_a").above(0);
   s.text("time_integrator", "rk4",
