@@ -1714,7 +1714,13 @@ void FluidModel<Dim>::advance(double t, double dt) {
     if (now) forced = [&](const auto& lo, const auto& hi) { return now(lo, hi) || next(lo, hi); };
     if (adapt_on_primitive_) convert_fields(*grid_, gamma_, true);
     const auto changes = grid_->adapt_cycle(threshold_, forced);
-    if (adapt_on_primitive_) convert_fields(*grid_, gamma_, false);
+    if (adapt_on_primitive_) {
+      convert_fields(*grid_, gamma_, false);
+      // Ghosts the adaptation filled were interpolated in (rho, u, p): fill them all again from
+      // the conserved fields, as the next step's first stage takes them (and as on any number
+      // of ranks, which fill different ones during an adaptation).
+      grid_->fill_ghosts();
+    }
     if (changes.refined + changes.coarsened > 0) ++adapt_cycles_changing_;
     layout_changed();
     // Points a refinement placed on a wall were interpolated. A changed wall point may be read

@@ -37,6 +37,10 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   std::vector<double> local_w;
   std::vector<std::int32_t> remote_src;  // index of a received point (times fields + field)
   std::vector<double> remote_w;
+  // Per row: how many of its remote terms come before its local ones. A row's terms are in one
+  // order on any number of ranks (by leaf along the curve, then point), and the fill sums them
+  // in that order, so a ghost is bitwise the same on 1 and on several ranks.
+  std::vector<std::int32_t> remote_lead;
   std::vector<std::uint8_t> kind;        // per local array point (GhostKind)
   // Per local block, for reuse after an adaptation: its first row, whether any of its terms is
   // remote, its position along the curve, and the leaves its rows were resolved from (as local
@@ -70,7 +74,7 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   /// Empties every list, keeping its storage (a rebuild refills the plan it replaced last time).
   void clear() {
     auto empty = [](auto&... lists) { (lists.clear(), ...); };
-    empty(dest, local_begin, remote_begin, local_src, local_w, remote_src, remote_w, kind, block_row_begin,
+    empty(dest, local_begin, remote_begin, local_src, local_w, remote_src, remote_w, remote_lead, kind, block_row_begin,
           block_dependency_begin, block_has_remote, block_rebuilt, block_curve, block_dependencies, local_src_slot,
           recv_rank, recv_first, recv_count, send_rank, send_first, send_count, send_src, send_buffer, recv_buffer,
           requests);
@@ -483,6 +487,7 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
       const auto shift = (static_cast<std::int64_t>(s) - static_cast<std::int64_t>(*o)) * volume;
       const std::size_t rows = plan.dest.size(), first_term = plan.local_src.size();
       plan.dest.resize(rows + (k1 - k0));
+      plan.remote_lead.resize(plan.dest.size(), 0);  // a reused block has no remote terms
       for (std::size_t k = k0; k < k1; ++k) plan.dest[rows + k - k0] = old.dest[k] + shift;
       const auto term_shift = static_cast<std::int32_t>(first_term) - static_cast<std::int32_t>(t0);
       plan.local_begin.resize(rows + 1 + (k1 - k0));
@@ -522,6 +527,7 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
     plan.dest.resize(first_row + ghost_rows);
     plan.local_begin.resize(first_row + ghost_rows + 1);
     plan.remote_begin.resize(first_row + ghost_rows + 1);
+    plan.remote_lead.resize(first_row + ghost_rows, 0);
     std::size_t row = first_row;
     auto end_row = [&] {
       plan.local_begin[row + 1] = static_cast<std::int32_t>(plan.local_src.size());
@@ -602,6 +608,7 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
           const auto [it, added] = list.try_emplace({leaf, terms[t].point}, static_cast<int>(list.size()));
           remote_pending.emplace_back(who, it->second);
           plan.remote_w.push_back(w);
+          if (static_cast<std::int32_t>(plan.local_src.size()) == plan.local_begin[row]) ++plan.remote_lead[row];
         }
       }
       end_row();
@@ -808,14 +815,25 @@ void AdaptiveGrid<Dim>::fill_ghost_lists(std::initializer_list<std::size_t> list
   for (const std::size_t list : lists) fill_local_ghosts(plan, list);
   MPI_Waitall(static_cast<int>(nreq), plan.requests.data(), MPI_STATUSES_IGNORE);
   if (plan.remote_src.empty()) return;
+  // A row with remote terms is summed again, all its terms in their order (the leading remote
+  // ones, the local ones, the others): the same additions one rank makes.
   for (const std::size_t list : lists)
     for (std::size_t f = 0; f < Fu; ++f) {
       double* u = data_[f].data();
       const double* received = plan.recv_buffer.data() + f;
+      auto add_remote = [&](double& v, std::int32_t from, std::int32_t to) {
+        for (auto t = static_cast<std::size_t>(from); t < static_cast<std::size_t>(to); ++t)
+          v += plan.remote_w[t] * received[plan.remote_src[t]];
+      };
       for (const std::int32_t row : plan.remote_rows[list]) {
         const auto k = static_cast<std::size_t>(row);
-        for (auto t = plan.remote_begin[k]; t < plan.remote_begin[k + 1]; ++t)
-          u[plan.dest[k]] += plan.remote_w[static_cast<std::size_t>(t)] * received[plan.remote_src[static_cast<std::size_t>(t)]];
+        const std::int32_t lead = plan.remote_begin[k] + plan.remote_lead[k];
+        double v = 0;
+        add_remote(v, plan.remote_begin[k], lead);
+        for (auto t = static_cast<std::size_t>(plan.local_begin[k]); t < static_cast<std::size_t>(plan.local_begin[k + 1]); ++t)
+          v += plan.local_w[t] * u[plan.local_src[t]];
+        add_remote(v, lead, plan.remote_begin[k + 1]);
+        u[plan.dest[k]] = v;
       }
     }
 }
