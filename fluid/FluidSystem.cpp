@@ -176,6 +176,27 @@ struct ForceSample {
 };
 constexpr std::size_t kForceColumns = 12;
 
+/// The primitive form (rho, u, p) of a conserved state (rho, rho u, E), in the same slots.
+template <int Dim>
+Conserved<Dim> primitive_form(const Conserved<Dim>& q, double gamma) {
+  const auto w = to_primitive<Dim>(q, gamma);
+  Conserved<Dim> v{};
+  v[0] = w.rho;
+  for (std::size_t a = 0; a < static_cast<std::size_t>(Dim); ++a) v[a + 1] = w.u[a];
+  v[static_cast<std::size_t>(Dim) + 1] = w.p;
+  return v;
+}
+
+/// The conserved state of a primitive form (primitive_form's inverse).
+template <int Dim>
+Conserved<Dim> conserved_form(const Conserved<Dim>& v, double gamma) {
+  Primitive<Dim> w;
+  w.rho = v[0];
+  for (std::size_t a = 0; a < static_cast<std::size_t>(Dim); ++a) w.u[a] = v[a + 1];
+  w.p = v[static_cast<std::size_t>(Dim) + 1];
+  return to_conserved<Dim>(w, gamma);
+}
+
 /// Rewrites every array point (ghosts included) of the grid's local blocks between the conserved
 /// fields (rho, rho u, E) and the primitive ones (rho, u, p), for adapting on primitive
 /// variables: the thresholds then see the velocity and pressure, and refinement interpolates
@@ -184,29 +205,16 @@ constexpr std::size_t kForceColumns = 12;
 /// is the same in both forms, so the two directions skip the same points.
 template <int Dim>
 void convert_fields(wavelet::AdaptiveGrid<Dim>& grid, double gamma, bool to_primitive_form) {
-  constexpr int kF = Dim + 2;
+  constexpr std::size_t kF = Dim + 2;
   for (std::size_t s = 0; s < grid.local_blocks(); ++s) {
     std::array<std::span<double>, kF> f;
-    for (int k = 0; k < kF; ++k) f[static_cast<std::size_t>(k)] = grid.block(k, s);
+    for (std::size_t k = 0; k < kF; ++k) f[k] = grid.block(static_cast<int>(k), s);
     for (std::size_t at = 0; at < f[0].size(); ++at) {
-      const double rho = f[0][at];
-      if (!(rho > 0) || !std::isfinite(rho)) continue;
-      Conserved<Dim> out{};
-      if (to_primitive_form) {
-        Conserved<Dim> q;
-        for (std::size_t k = 0; k < kF; ++k) q[k] = f[k][at];
-        const auto w = to_primitive<Dim>(q, gamma);
-        out[0] = w.rho;
-        for (std::size_t a = 0; a < static_cast<std::size_t>(Dim); ++a) out[a + 1] = w.u[a];
-        out[kF - 1] = w.p;
-      } else {
-        Primitive<Dim> w;
-        w.rho = rho;
-        for (std::size_t a = 0; a < static_cast<std::size_t>(Dim); ++a) w.u[a] = f[a + 1][at];
-        w.p = f[kF - 1][at];
-        out = to_conserved<Dim>(w, gamma);
-      }
-      for (std::size_t k = 0; k < kF; ++k) f[k][at] = out[k];
+      if (!(f[0][at] > 0) || !std::isfinite(f[0][at])) continue;
+      Conserved<Dim> v;
+      for (std::size_t k = 0; k < kF; ++k) v[k] = f[k][at];
+      v = to_primitive_form ? primitive_form<Dim>(v, gamma) : conserved_form<Dim>(v, gamma);
+      for (std::size_t k = 0; k < kF; ++k) f[k][at] = v[k];
     }
   }
 }
@@ -611,10 +619,8 @@ FluidModel<Dim>::FluidModel(const Scene& scene) {
         initial_state(x, v);
         Conserved<Dim> q;
         std::copy(v.begin(), v.end(), q.begin());
-        const auto w = to_primitive<Dim>(q, gamma_);
-        v[0] = w.rho;
-        for (int a = 0; a < Dim; ++a) v[static_cast<std::size_t>(a) + 1] = w.u[static_cast<std::size_t>(a)];
-        v[static_cast<std::size_t>(Dim) + 1] = w.p;
+        q = primitive_form<Dim>(q, gamma_);
+        std::copy(q.begin(), q.end(), v.begin());
       };
       grid_->adapt_to_function(threshold_, initial_primitive, forced_region(0.0));
       grid_->adapt(threshold_, wavelet::AdaptPass::kRefine, forced_region(0.0));

@@ -29,7 +29,6 @@ inline double solid_inertia(int dimension, double mass, double radius) {
   return (dimension == 2 ? 0.5 : 0.4) * mass * radius * radius;
 }
 
-/// Keeps the entries i of a per-slot array with keep[i] != 0, in their order (stable compaction).
 /// to = from for arrays of Vec3 as one block copy. Eigen's vectors are not trivially copyable, so
 /// std::vector's assignment copies them one by one, several times slower; the DEM keeps a copy
 /// of its state every step (the last good state), where that was 10% of a curtain run.
@@ -39,6 +38,7 @@ inline void copy_vec3(std::vector<Vec3>& to, const std::vector<Vec3>& from) {
   if (!from.empty()) std::memcpy(static_cast<void*>(to.data()), static_cast<const void*>(from.data()), from.size() * sizeof(Vec3));
 }
 
+/// Keeps the entries i of a per-slot array with keep[i] != 0, in their order (stable compaction).
 template <class T>
 void keep_slots(std::vector<T>& v, const std::vector<std::uint8_t>& keep) {
   std::size_t out = 0;

@@ -708,10 +708,14 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan) const {
     group_of[p] = outside == 0 || deepest <= stencil_reach_[static_cast<std::size_t>(outside - 1)] ? 0 : 1;
   }
   auto add = [&](std::size_t list, std::size_t k) {
-    if (plan.remote_begin[k + 1] != plan.remote_begin[k]) plan.remote_rows[list].push_back(static_cast<std::int32_t>(k));
+    // A row with remote terms is summed whole once its messages are in (fill_ghost_lists), its
+    // local terms with them: not in the local pass as well.
+    if (plan.remote_begin[k + 1] != plan.remote_begin[k]) {
+      plan.remote_rows[list].push_back(static_cast<std::int32_t>(k));
+      return;
+    }
     const auto t = static_cast<std::size_t>(plan.local_begin[k]);
-    const bool copy = plan.local_begin[k + 1] - plan.local_begin[k] == 1 && plan.local_w[t] == 1.0 &&
-                      plan.remote_begin[k + 1] == plan.remote_begin[k];
+    const bool copy = plan.local_begin[k + 1] - plan.local_begin[k] == 1 && plan.local_w[t] == 1.0;
     if (copy) {
       const std::int64_t dest = plan.dest[k], src = plan.local_src[t];
       auto& runs = plan.copy_runs[list];
@@ -815,8 +819,8 @@ void AdaptiveGrid<Dim>::fill_ghost_lists(std::initializer_list<std::size_t> list
   for (const std::size_t list : lists) fill_local_ghosts(plan, list);
   MPI_Waitall(static_cast<int>(nreq), plan.requests.data(), MPI_STATUSES_IGNORE);
   if (plan.remote_src.empty()) return;
-  // A row with remote terms is summed again, all its terms in their order (the leading remote
-  // ones, the local ones, the others): the same additions one rank makes.
+  // The rows with remote terms, all their terms in their order (the leading remote ones, the
+  // local ones, the others): the same additions one rank makes.
   for (const std::size_t list : lists)
     for (std::size_t f = 0; f < Fu; ++f) {
       double* u = data_[f].data();

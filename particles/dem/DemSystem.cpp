@@ -945,7 +945,7 @@ void DemSystem::restore_good_state() {
   tally_ = good_tally_;
   bins_ = good_bins_;
   flow_csv_ = good_flow_csv_;
-  sample_position_ = good_sample_position_;
+  copy_vec3(sample_position_, good_sample_position_);
   sample_seen_ = good_sample_seen_;
   if (!good_force_.empty()) verlet_.restore_forces(good_force_, good_torque_);
   else verlet_.reset();
