@@ -972,11 +972,16 @@ std::vector<double> AdaptiveGrid<Dim>::field_scales(const ThresholdConfig& th) c
   std::vector<double> scale(F, 1.0);
   if (th.normalisation == Normalisation::kAbsolute) return scale;
   std::vector<double> local(F, 0.0), global(F, 0.0);
-  // Max is exact: any order gives the same.
+  // Max is exact: any order gives the same. The same pass keeps each block's range of values
+  // for the tagging's range bound (block_bounds), which would read the blocks again.
+  block_ranges_.resize(F * local_blocks());
   for (std::size_t f = 0; f < F; ++f)
-    for (std::size_t s = 0; s < local_blocks(); ++s)
-      local[f] = std::max(local[f], interior_largest_magnitude(data_[f].data() + s * block_volume_, Dim,
-                                                               config_.block_size, layout_.ghosts));
+    for (std::size_t s = 0; s < local_blocks(); ++s) {
+      const BlockExtent e = block_extent(data_[f].data() + s * block_volume_, Dim, config_.block_size, layout_.ghosts);
+      local[f] = std::max(local[f], e.interior_magnitude);
+      block_ranges_[f * local_blocks() + s] = {e.low, e.high};
+    }
+  block_ranges_valid_ = true;
   MPI_Allreduce(local.data(), global.data(), static_cast<int>(F), MPI_DOUBLE, MPI_MAX, comm_);
   for (std::size_t f = 0; f < F; ++f) {
     double m = global[f];
@@ -991,6 +996,7 @@ std::vector<double> AdaptiveGrid<Dim>::field_scales(const ThresholdConfig& th) c
 template <int Dim>
 std::int64_t AdaptiveGrid<Dim>::significant_points(const ThresholdConfig& th) const {
   const auto scale = field_scales(th);
+  block_ranges_valid_ = false;  // only the tagging reads them
   std::vector<double> d(interior_points_);
   std::vector<char> significant(interior_points_);
   std::int64_t count = 0;
@@ -1188,6 +1194,7 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_pass(const ThresholdConfig& th, AdaptPass p
   if (reuse) {
     sig = *refine_sig;
   } else {
+    block_ranges_valid_ = false;
     scale = field_scales(th);
     const auto needed = needed_in(pass);
     const auto needed_later = share ? needed_in(AdaptPass::kRefine) : std::vector<char>{};
@@ -1200,6 +1207,7 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_pass(const ThresholdConfig& th, AdaptPass p
       local_sig[s] = cycle && pass == AdaptPass::kRefine ? near : now && any;
       if (later) local_near[s] = near;
     }
+    block_ranges_valid_ = false;  // the data changes from here on
     gather_leaf_flags(local_sig, sig);
     if (share) {
       refine_sig->assign(n, 0);
@@ -1520,6 +1528,7 @@ const typename AdaptiveGrid<Dim>::DetailStencils& AdaptiveGrid<Dim>::block_detai
 
 template <int Dim>
 std::pair<double, double> AdaptiveGrid<Dim>::block_bounds(int field, std::size_t slot) const {
+  if (block_ranges_valid_) return block_ranges_[static_cast<std::size_t>(field) * local_blocks() + slot];
   return value_range(data_[static_cast<std::size_t>(field)].data() + slot * block_volume_, block_volume_);
 }
 

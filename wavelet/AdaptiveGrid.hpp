@@ -326,6 +326,10 @@ class AdaptiveGrid {
   mutable std::vector<double> parent_array_;             // parent_significant: the assembled parent
   mutable std::vector<std::pair<int, std::ptrdiff_t>> parent_sources_;  // ... and where its points come from
   mutable std::vector<std::uint8_t> bound_rest_;  // block_significance: calls left without the range bound
+  /// Each block's range of values per field (field-major), from field_scales' pass, for
+  /// block_bounds while the tagging that asked for the scales runs (valid only then).
+  mutable std::vector<std::pair<double, double>> block_ranges_;
+  mutable bool block_ranges_valid_ = false;
   mutable std::vector<int> first_field_;  // block_significance: the field it tries first
 };
 

@@ -213,6 +213,63 @@ GRAINWAVE_CLONES_AVX2 double interior_largest_magnitude(const double* u, int dim
 
 namespace {
 
+/// block_extent for block size kBlockSize (0: any). Row by row: each array row's values into
+/// the range lanes (selects that keep the old value at a NaN, as value_range), an interior row's
+/// interior values also into the magnitude lanes (as largest_magnitude). Minimum, maximum and
+/// the largest magnitude are exact whatever the order, so they are those of the two passes; the
+/// range starts at u[0], as value_range's does (a NaN there stays).
+template <int kBlockSize>
+BlockExtent extent(const double* u, int dim, int bs, int g) {
+  const auto ubs = kBlockSize > 0 ? static_cast<std::size_t>(kBlockSize) : static_cast<std::size_t>(bs);
+  const auto ug = static_cast<std::size_t>(g), uw = ubs + 2 * ug;
+  const std::size_t planes = dim == 3 ? uw : 1, lines = dim >= 2 ? uw : 1;
+  auto interior = [&](std::size_t r) { return r >= ug && r < ug + ubs; };
+  Lanes lo = {u[0], u[0], u[0], u[0]}, hi = lo, top = {0, 0, 0, 0};
+  double low = u[0], high = u[0], largest = 0;
+  for (std::size_t k = 0; k < planes; ++k)
+    for (std::size_t j = 0; j < lines; ++j) {
+      const double* row = u + (k * lines + j) * uw;
+      std::size_t i = 0;
+      for (; i + 4 <= uw; i += 4) {
+        Lanes v;
+        std::memcpy(&v, row + i, sizeof v);
+        lo = v < lo ? v : lo;
+        hi = v > hi ? v : hi;
+      }
+      for (; i < uw; ++i) {
+        low = row[i] < low ? row[i] : low;
+        high = row[i] > high ? row[i] : high;
+      }
+      if ((dim == 3 && !interior(k)) || (dim >= 2 && !interior(j))) continue;
+      const double* inside = row + ug;
+      i = 0;
+      for (; i + 4 <= ubs; i += 4) {
+        Lanes v;
+        std::memcpy(&v, inside + i, sizeof v);
+        v = v < 0 ? -v : v;
+        top = v > top ? v : top;
+      }
+      for (; i < ubs; ++i) {
+        const double v = std::abs(inside[i]);
+        largest = v > largest ? v : largest;
+      }
+    }
+  for (int l = 0; l < 4; ++l) {
+    low = lo[l] < low ? lo[l] : low;
+    high = hi[l] > high ? hi[l] : high;
+    largest = top[l] > largest ? top[l] : largest;
+  }
+  return {low, high, largest};
+}
+
+}  // namespace
+
+GRAINWAVE_CLONES_AVX2 BlockExtent block_extent(const double* u, int dim, int bs, int g) {
+  return with_block_size<8, 16, 32>(bs, [&](auto size) { return extent<decltype(size)::value>(u, dim, bs, g); });
+}
+
+namespace {
+
 /// The kernel for the block size and order at hand: the common block sizes compiled for their
 /// size, the others for any. (Not 8: compiled for it, the 2D maxima took 30% more instructions
 /// on the 8^2 blocks of two_cylinders.toml than the general loop.)
