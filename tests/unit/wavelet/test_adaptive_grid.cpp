@@ -796,3 +796,32 @@ TEST(DetailKernels, InteriorLargestMagnitudeMatchesPlainLoop) {
       EXPECT_EQ(gw::interior_largest_magnitude(u.data(), dim, bs, g), expected) << "dim " << dim << " bs " << bs;
     }
 }
+
+// The one-pass extent the tagging reads (field_scales keeps its ranges for the range bound)
+// against the two passes it replaces, bitwise: the range of the whole array (ghosts included,
+// NaNs passed over, a NaN first value kept, as value_range does) and the interior's largest
+// magnitude, for the sizes compiled apart and a general one.
+TEST(DetailKernels, BlockExtentIsValueRangeAndInteriorMagnitude) {
+  for (const int dim : {1, 2, 3})
+    for (const int bs : {8, 10, 16, 32}) {
+      if (dim == 3 && bs == 32) continue;
+      const int g = 3, w = bs + 2 * g;
+      const std::size_t volume = static_cast<std::size_t>(std::pow(w, dim));
+      std::vector<double> u(volume);
+      for (std::size_t p = 0; p < volume; ++p) u[p] = std::cos(0.91 * static_cast<double>(p)) * (1 + 1e-2 * static_cast<double>(p % 5));
+      u[volume / 2 + 1] = std::numeric_limits<double>::quiet_NaN();  // passed over
+      u[volume - 1] = -7.5;  // a ghost (the last corner): in the range, not in the magnitude
+      u[1] = 9.25;           // a ghost too
+      const auto extent = gw::block_extent(u.data(), dim, bs, g);
+      const auto [low, high] = gw::value_range(u.data(), volume);
+      EXPECT_EQ(extent.low, low) << "dim " << dim << " bs " << bs;
+      EXPECT_EQ(extent.high, high) << "dim " << dim << " bs " << bs;
+      EXPECT_EQ(extent.low, -7.5);
+      EXPECT_EQ(extent.high, 9.25);
+      EXPECT_EQ(extent.interior_magnitude, gw::interior_largest_magnitude(u.data(), dim, bs, g)) << "dim " << dim << " bs " << bs;
+      EXPECT_LT(extent.interior_magnitude, 1.1);
+      u[0] = std::numeric_limits<double>::quiet_NaN();  // a NaN first value stays, in both
+      const auto first_nan = gw::block_extent(u.data(), dim, bs, g);
+      EXPECT_TRUE(std::isnan(first_nan.low) && std::isnan(gw::value_range(u.data(), volume).first));
+    }
+}
