@@ -5,8 +5,9 @@ ghost fill, against one right-hand-side evaluation on the same grid. Issue 3's t
 ghost fill <= 25% of one 2D compressible-NS RHS. The figures come from each run's summary.json
 (metrics adapt_cycle_s, ghost_fill_s, rhs_evaluation_s, adapt_ghost_over_rhs, and
 adapt_changing_fraction: the share of cycles that refined or coarsened a block, which then rebuild
-the ghost plan and block storage), which every fluid run reports; this script only picks
-representative runs and prints the table.
+the ghost plan and block storage, and adapt_settled_cycle_s / adapt_changing_cycle_s, the cost of a
+cycle of each kind), which every fluid run reports; this script only picks representative runs and
+prints the table.
 
 usage: bench/adapt_cost.py GRAINWAVE_EXECUTABLE [OUT_FOLDER] [--repeats=N]   (N runs each, median; 3)
 """
@@ -46,7 +47,7 @@ def main():
     out = args[1] if len(args) > 1 else "out/adapt_cost"
     os.makedirs(out, exist_ok=True)
     print(f"{'run':40s} {'blocks':>7s} {'adapt cycle':>12s} {'ghost fill':>11s} {'RHS':>10s} "
-          f"{'(adapt+ghost)/RHS':>18s} {'range':>13s} {'changing':>9s}  target <= 0.25")
+          f"{'(adapt+ghost)/RHS':>18s} {'range':>13s} {'changing':>9s} {'settled cycle':>14s} {'changing cycle':>15s}  target <= 0.25")
     for label, scene, settings in RUNS:
         # The same run `repeats` times (the outputs are identical; only the clock differs): the
         # row with the median ratio, and the range, since one short run can be 10-40% off on a
@@ -62,7 +63,8 @@ def main():
         low, high = (summaries[k]["metrics"]["adapt_ghost_over_rhs"] for k in (0, -1))
         print(f"{label:40s} {s['counts']['blocks']:7d} {m['adapt_cycle_s'] * 1e3:9.3f} ms "
               f"{m['ghost_fill_s'] * 1e3:8.3f} ms {m['rhs_evaluation_s'] * 1e3:7.3f} ms {ratio:18.3f} "
-              f"{low:6.3f}-{high:.3f} {m.get('adapt_changing_fraction', float('nan')):9.2f}  "
+              f"{low:6.3f}-{high:.3f} {m.get('adapt_changing_fraction', float('nan')):9.2f} "
+              f"{m.get('adapt_settled_cycle_s', float('nan')) * 1e3:11.3f} ms {m.get('adapt_changing_cycle_s', float('nan')) * 1e3:12.3f} ms  "
               f"{'met' if ratio <= 0.25 else 'not met'}")
 
 

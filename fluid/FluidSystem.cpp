@@ -287,6 +287,7 @@ class FluidModel : public io::System {
   long steps_taken_ = 0;
   long adapt_cycles_ = 0;  // in this process, like the stage timers
   long adapt_cycles_changing_ = 0;  // of which refined or coarsened some block
+  double adapt_changing_s_ = 0;      // the time of those cycles (the "adapt" stage's share)
   std::array<std::array<BoundaryKind, 2>, Dim> boundary_{};
   std::array<std::array<Conserved<Dim>, 2>, Dim> inflow_{};  ///< state held by inflow ghosts
   double gamma_ = 1.4, cfl_ = 0.8;
@@ -1715,6 +1716,7 @@ void FluidModel<Dim>::advance(double t, double dt) {
     // the same data share their coefficients.
     ++adapt_cycles_;
     ScopedTimer timer(timers_, "adapt");
+    const Stopwatch cycle_clock;
     const auto now = forced_region(t + dt), next = forced_region(t + dt + adapt_every_ * dt);
     wavelet::ForcedRegion<Dim> forced;
     if (now) forced = [&](const auto& lo, const auto& hi) { return now(lo, hi) || next(lo, hi); };
@@ -1727,11 +1729,14 @@ void FluidModel<Dim>::advance(double t, double dt) {
       // of ranks, which fill different ones during an adaptation).
       grid_->fill_ghosts();
     }
-    if (changes.refined + changes.coarsened > 0) ++adapt_cycles_changing_;
     layout_changed();
     // Points a refinement placed on a wall were interpolated. A changed wall point may be read
     // by a neighbour's ghosts, which were filled before: then the next step fills them again.
     walls_changed = constrain_walls({}, false);
+    if (changes.refined + changes.coarsened > 0) {
+      ++adapt_cycles_changing_;
+      adapt_changing_s_ += cycle_clock.seconds();
+    }
   }
   fill_boundary_ghosts();
   grid_is_current_state_ = !walls_changed;
@@ -1991,6 +1996,13 @@ void FluidModel<Dim>::report_adaptation_cost(io::Json& metrics) const {
   // Cycles that change the grid cost a ghost-plan rebuild and new block storage; settled ones
   // only the coefficients.
   metrics.set("adapt_changing_fraction", static_cast<double>(adapt_cycles_changing_) / static_cast<double>(adapt_cycles_));
+  // The two kinds apart (where each cycle's time goes differs: coefficients in settled ones, new
+  // blocks and the ghost plan's rebuild in changing ones), each per cycle of its kind.
+  const auto settled_cycles = adapt_cycles_ - adapt_cycles_changing_;
+  if (settled_cycles > 0)
+    metrics.set("adapt_settled_cycle_s", mpi::max((seconds("adapt") - adapt_changing_s_) / static_cast<double>(settled_cycles)));
+  if (adapt_cycles_changing_ > 0)
+    metrics.set("adapt_changing_cycle_s", mpi::max(adapt_changing_s_ / static_cast<double>(adapt_cycles_changing_)));
   metrics.set("adapt_ghost_over_rhs", rhs_s > 0 ? (adapt_s + ghost_s) / rhs_s : 0.0);
 }
 
