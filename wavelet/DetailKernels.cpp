@@ -216,8 +216,9 @@ namespace {
 /// block_extent for block size kBlockSize (0: any). Row by row: each array row's values into
 /// the range lanes (selects that keep the old value at a NaN, as value_range), an interior row's
 /// interior values also into the magnitude lanes (as largest_magnitude). Minimum, maximum and
-/// the largest magnitude are exact whatever the order, so they are those of the two passes; the
-/// range starts at u[0], as value_range's does (a NaN there stays).
+/// the largest magnitude are exact whatever the order, so they are those of the two passes (of
+/// +0 and -0 the range keeps whichever came first); the range starts at u[0], as value_range's
+/// does (a NaN there stays).
 template <int kBlockSize>
 BlockExtent extent(const double* u, int dim, int bs, int g) {
   const auto ubs = kBlockSize > 0 ? static_cast<std::size_t>(kBlockSize) : static_cast<std::size_t>(bs);

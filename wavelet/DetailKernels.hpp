@@ -45,7 +45,8 @@ std::pair<double, double> value_range(const double* u, std::size_t n);
 /// g ghost layers per side along each (0 if all are NaN): the linf scale of the threshold.
 double interior_largest_magnitude(const double* u, int dim, int bs, int g);
 
-/// value_range of the whole block array and interior_largest_magnitude, bitwise, in one pass:
+/// value_range of the whole block array and interior_largest_magnitude in one pass, the same
+/// values (a zero's sign in the range may differ; the tagging reads high - low and magnitudes):
 /// the tagging needs both of every block and field, and each pass read the block from memory.
 struct BlockExtent {
   double low, high, interior_magnitude;

@@ -768,33 +768,48 @@ TEST(AdaptiveGrid, CoarsenFractionKeepsBlocksInTheHysteresisBand) {
   for (const auto& key : in_band) EXPECT_TRUE(hysteresis.forest().find(key).has_value()) << "a block in the band coarsened";
 }
 
-// The linf scale's kernel (compiled for block sizes 8, 16 and 32, general otherwise) against a
-// plain loop over the interior points: the same maximum, ghosts never read, NaNs passed over.
-TEST(DetailKernels, InteriorLargestMagnitudeMatchesPlainLoop) {
+/// Calls check(dim, bs, g, u) for block arrays of 1 to 3 axes, with the block sizes the kernels
+/// are compiled for (8, 16, 32) and a general one (10), g = 3: u holds sin-like values.
+template <class Check>
+void for_each_block_array(double frequency, Check&& check) {
   for (const int dim : {1, 2, 3})
     for (const int bs : {8, 10, 16, 32}) {
       if (dim == 3 && bs == 32) continue;
       const int g = 3, w = bs + 2 * g;
       const std::size_t volume = static_cast<std::size_t>(std::pow(w, dim));
       std::vector<double> u(volume);
-      for (std::size_t p = 0; p < volume; ++p) u[p] = std::sin(0.37 * static_cast<double>(p)) * (1 + 1e-3 * static_cast<double>(p % 7));
-      std::vector<char> interior(volume, 1);
-      for (std::size_t p = 0; p < volume; ++p) {
-        std::size_t rest = p;
-        for (int a = 0; a < dim; ++a) {
-          const int i = static_cast<int>(rest % static_cast<std::size_t>(w));
-          rest /= static_cast<std::size_t>(w);
-          if (i < g || i >= g + bs) interior[p] = 0;
-        }
-        if (!interior[p]) u[p] = 1e3;  // a ghost: never read
-      }
-      const auto first_interior = static_cast<std::size_t>(std::find(interior.begin(), interior.end(), 1) - interior.begin());
-      u[first_interior] = std::numeric_limits<double>::quiet_NaN();  // passed over
-      double expected = 0;
       for (std::size_t p = 0; p < volume; ++p)
-        if (interior[p] && !std::isnan(u[p])) expected = std::max(expected, std::abs(u[p]));
-      EXPECT_EQ(gw::interior_largest_magnitude(u.data(), dim, bs, g), expected) << "dim " << dim << " bs " << bs;
+        u[p] =
+            std::sin(frequency * static_cast<double>(p)) * (1 + 1e-3 * static_cast<double>(p % 7));
+      check(dim, bs, g, u);
     }
+}
+
+// The linf scale's kernel (compiled for block sizes 8, 16 and 32, general otherwise) against a
+// plain loop over the interior points: the same maximum, ghosts never read, NaNs passed over.
+TEST(DetailKernels, InteriorLargestMagnitudeMatchesPlainLoop) {
+  for_each_block_array(0.37, [](int dim, int bs, int g, std::vector<double>& u) {
+    const int w = bs + 2 * g;
+    const std::size_t volume = u.size();
+    std::vector<char> interior(volume, 1);
+    for (std::size_t p = 0; p < volume; ++p) {
+      std::size_t rest = p;
+      for (int a = 0; a < dim; ++a) {
+        const int i = static_cast<int>(rest % static_cast<std::size_t>(w));
+        rest /= static_cast<std::size_t>(w);
+        if (i < g || i >= g + bs) interior[p] = 0;
+      }
+      if (!interior[p]) u[p] = 1e3;  // a ghost: never read
+    }
+    const auto first_interior =
+        static_cast<std::size_t>(std::find(interior.begin(), interior.end(), 1) - interior.begin());
+    u[first_interior] = std::numeric_limits<double>::quiet_NaN();  // passed over
+    double expected = 0;
+    for (std::size_t p = 0; p < volume; ++p)
+      if (interior[p] && !std::isnan(u[p])) expected = std::max(expected, std::abs(u[p]));
+    EXPECT_EQ(gw::interior_largest_magnitude(u.data(), dim, bs, g), expected)
+        << "dim " << dim << " bs " << bs;
+  });
 }
 
 // The one-pass extent the tagging reads (field_scales keeps its ranges for the range bound)
@@ -802,26 +817,22 @@ TEST(DetailKernels, InteriorLargestMagnitudeMatchesPlainLoop) {
 // NaNs passed over, a NaN first value kept, as value_range does) and the interior's largest
 // magnitude, for the sizes compiled apart and a general one.
 TEST(DetailKernels, BlockExtentIsValueRangeAndInteriorMagnitude) {
-  for (const int dim : {1, 2, 3})
-    for (const int bs : {8, 10, 16, 32}) {
-      if (dim == 3 && bs == 32) continue;
-      const int g = 3, w = bs + 2 * g;
-      const std::size_t volume = static_cast<std::size_t>(std::pow(w, dim));
-      std::vector<double> u(volume);
-      for (std::size_t p = 0; p < volume; ++p) u[p] = std::cos(0.91 * static_cast<double>(p)) * (1 + 1e-2 * static_cast<double>(p % 5));
-      u[volume / 2 + 1] = std::numeric_limits<double>::quiet_NaN();  // passed over
-      u[volume - 1] = -7.5;  // a ghost (the last corner): in the range, not in the magnitude
-      u[1] = 9.25;           // a ghost too
-      const auto extent = gw::block_extent(u.data(), dim, bs, g);
-      const auto [low, high] = gw::value_range(u.data(), volume);
-      EXPECT_EQ(extent.low, low) << "dim " << dim << " bs " << bs;
-      EXPECT_EQ(extent.high, high) << "dim " << dim << " bs " << bs;
-      EXPECT_EQ(extent.low, -7.5);
-      EXPECT_EQ(extent.high, 9.25);
-      EXPECT_EQ(extent.interior_magnitude, gw::interior_largest_magnitude(u.data(), dim, bs, g)) << "dim " << dim << " bs " << bs;
-      EXPECT_LT(extent.interior_magnitude, 1.1);
-      u[0] = std::numeric_limits<double>::quiet_NaN();  // a NaN first value stays, in both
-      const auto first_nan = gw::block_extent(u.data(), dim, bs, g);
-      EXPECT_TRUE(std::isnan(first_nan.low) && std::isnan(gw::value_range(u.data(), volume).first));
-    }
+  for_each_block_array(0.91, [](int dim, int bs, int g, std::vector<double>& u) {
+    const std::size_t volume = u.size();
+    u[volume / 2 + 1] = std::numeric_limits<double>::quiet_NaN();  // passed over
+    u[volume - 1] = -7.5;  // a ghost (the last corner): in the range, not in the magnitude
+    u[1] = 9.25;           // a ghost too
+    const auto extent = gw::block_extent(u.data(), dim, bs, g);
+    const auto [low, high] = gw::value_range(u.data(), volume);
+    EXPECT_EQ(extent.low, low) << "dim " << dim << " bs " << bs;
+    EXPECT_EQ(extent.high, high) << "dim " << dim << " bs " << bs;
+    EXPECT_EQ(extent.low, -7.5);
+    EXPECT_EQ(extent.high, 9.25);
+    EXPECT_EQ(extent.interior_magnitude, gw::interior_largest_magnitude(u.data(), dim, bs, g))
+        << "dim " << dim << " bs " << bs;
+    EXPECT_LT(extent.interior_magnitude, 1.1);
+    u[0] = std::numeric_limits<double>::quiet_NaN();  // a NaN first value stays, in both
+    const auto first_nan = gw::block_extent(u.data(), dim, bs, g);
+    EXPECT_TRUE(std::isnan(first_nan.low) && std::isnan(gw::value_range(u.data(), volume).first));
+  });
 }
