@@ -202,14 +202,18 @@ Conserved<Dim> conserved_form(const Conserved<Dim>& v, double gamma) {
 /// variables: the thresholds then see the velocity and pressure, and refinement interpolates
 /// them (which keeps a positive pressure positive where interpolating E and rho u might not).
 /// Points without a positive finite density (unfilled ghost corners) are left as they are; rho
-/// is the same in both forms, so the two directions skip the same points.
+/// is the same in both forms, so the two directions skip the same points. `only`: the array
+/// indices to convert (the interior, when the ghosts are filled again afterwards), or all.
 template <int Dim>
-void convert_fields(wavelet::AdaptiveGrid<Dim>& grid, double gamma, bool to_primitive_form) {
+void convert_fields(wavelet::AdaptiveGrid<Dim>& grid, double gamma, bool to_primitive_form,
+                    std::span<const std::ptrdiff_t> only = {}) {
   constexpr std::size_t kF = Dim + 2;
   for (std::size_t s = 0; s < grid.local_blocks(); ++s) {
     std::array<std::span<double>, kF> f;
     for (std::size_t k = 0; k < kF; ++k) f[k] = grid.block(static_cast<int>(k), s);
-    for (std::size_t at = 0; at < f[0].size(); ++at) {
+    const std::size_t count = only.empty() ? f[0].size() : only.size();
+    for (std::size_t n = 0; n < count; ++n) {
+      const auto at = only.empty() ? n : static_cast<std::size_t>(only[n]);
       if (!(f[0][at] > 0) || !std::isfinite(f[0][at])) continue;
       Conserved<Dim> v;
       for (std::size_t k = 0; k < kF; ++k) v[k] = f[k][at];
@@ -1723,10 +1727,11 @@ void FluidModel<Dim>::advance(double t, double dt) {
     if (adapt_on_primitive_) convert_fields(*grid_, gamma_, true);
     const auto changes = grid_->adapt_cycle(threshold_, forced);
     if (adapt_on_primitive_) {
-      convert_fields(*grid_, gamma_, false);
       // Ghosts the adaptation filled were interpolated in (rho, u, p): fill them all again from
       // the conserved fields, as the next step's first stage takes them (and as on any number
-      // of ranks, which fill different ones during an adaptation).
+      // of ranks, which fill different ones during an adaptation). So only the interiors are
+      // converted back: the fill rewrites every ghost.
+      convert_fields(*grid_, gamma_, false, interior_at_);
       grid_->fill_ghosts();
     }
     layout_changed();

@@ -967,21 +967,27 @@ std::pair<double, double> AdaptiveGrid<Dim>::detail_maxima(const double* u, cons
 }
 
 template <int Dim>
-std::vector<double> AdaptiveGrid<Dim>::field_scales(const ThresholdConfig& th) const {
+std::vector<double> AdaptiveGrid<Dim>::field_scales(const ThresholdConfig& th,
+                                                    std::vector<std::pair<double, double>>* ranges) const {
   const auto F = static_cast<std::size_t>(fields());
   std::vector<double> scale(F, 1.0);
+  if (ranges) ranges->clear();
   if (th.normalisation == Normalisation::kAbsolute) return scale;
   std::vector<double> local(F, 0.0), global(F, 0.0);
-  // Max is exact: any order gives the same. The same pass keeps each block's range of values
-  // for the tagging's range bound (block_bounds), which would read the blocks again.
-  block_ranges_.resize(F * local_blocks());
+  // Max is exact: any order gives the same. The same pass gives each block's range of values
+  // for the tagging's range bound, which would otherwise read the blocks again.
+  if (ranges) ranges->resize(F * local_blocks());
   for (std::size_t f = 0; f < F; ++f)
     for (std::size_t s = 0; s < local_blocks(); ++s) {
-      const BlockExtent e = block_extent(data_[f].data() + s * block_volume_, Dim, config_.block_size, layout_.ghosts);
+      const double* u = data_[f].data() + s * block_volume_;
+      if (!ranges) {  // the interiors only
+        local[f] = std::max(local[f], interior_largest_magnitude(u, Dim, config_.block_size, layout_.ghosts));
+        continue;
+      }
+      const BlockExtent e = block_extent(u, Dim, config_.block_size, layout_.ghosts);
       local[f] = std::max(local[f], e.interior_magnitude);
-      block_ranges_[f * local_blocks() + s] = {e.low, e.high};
+      (*ranges)[f * local_blocks() + s] = {e.low, e.high};
     }
-  block_ranges_valid_ = true;
   MPI_Allreduce(local.data(), global.data(), static_cast<int>(F), MPI_DOUBLE, MPI_MAX, comm_);
   for (std::size_t f = 0; f < F; ++f) {
     double m = global[f];
@@ -996,7 +1002,6 @@ std::vector<double> AdaptiveGrid<Dim>::field_scales(const ThresholdConfig& th) c
 template <int Dim>
 std::int64_t AdaptiveGrid<Dim>::significant_points(const ThresholdConfig& th) const {
   const auto scale = field_scales(th);
-  block_ranges_valid_ = false;  // only the tagging reads them
   std::vector<double> d(interior_points_);
   std::vector<char> significant(interior_points_);
   std::int64_t count = 0;
@@ -1031,7 +1036,9 @@ void AdaptiveGrid<Dim>::gather_leaf_flags(std::span<const char> local, std::span
 
 template <int Dim>
 std::pair<bool, bool> AdaptiveGrid<Dim>::block_significance(std::size_t slot, const ThresholdConfig& th,
-                                                            std::span<const double> scale, double any_fraction) const {
+                                                            std::span<const double> scale,
+                                                            std::span<const std::pair<double, double>> ranges,
+                                                            double any_fraction) const {
   bool any = false, near = false, bound_decided = false;
   // Where the range bound decided nothing last time (every field's coefficients were computed),
   // it is not tried for the next few calls: it rarely decides sooner on such a block, and costs
@@ -1052,7 +1059,8 @@ std::pair<bool, bool> AdaptiveGrid<Dim>::block_significance(std::size_t slot, co
     // insignificant without computing them (most of a far field). The margin covers the
     // rounding of the computed coefficients, so no decision differs from computing them.
     if (try_bound) {
-      const auto [low, high] = block_bounds(f, slot);
+      const auto [low, high] =
+          ranges.empty() ? block_bounds(f, slot) : ranges[static_cast<std::size_t>(f) * local_blocks() + slot];
       const double rounding = 1e-12 * std::max(std::abs(low), std::abs(high));
       if (block_detail_stencils(slot).bound * (high - low) * (1 + 1e-12) + rounding < std::min(threshold, threshold_any)) {
         bound_decided = true;
@@ -1194,8 +1202,8 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_pass(const ThresholdConfig& th, AdaptPass p
   if (reuse) {
     sig = *refine_sig;
   } else {
-    block_ranges_valid_ = false;
-    scale = field_scales(th);
+    std::vector<std::pair<double, double>> ranges;
+    scale = field_scales(th, &ranges);
     const auto needed = needed_in(pass);
     const auto needed_later = share ? needed_in(AdaptPass::kRefine) : std::vector<char>{};
     std::vector<char> local_sig(local_blocks(), 0), local_near(share ? local_blocks() : 0, 0);
@@ -1203,11 +1211,10 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_pass(const ThresholdConfig& th, AdaptPass p
       const bool now = needed[first_leaf_ + s] != 0, later = share && needed_later[first_leaf_ + s] != 0;
       if (!now && !later) continue;
       const auto [any, near] =
-          block_significance(s, th, scale, pass == AdaptPass::kCoarsen ? th.coarsen_fraction : 1.0);
+          block_significance(s, th, scale, ranges, pass == AdaptPass::kCoarsen ? th.coarsen_fraction : 1.0);
       local_sig[s] = cycle && pass == AdaptPass::kRefine ? near : now && any;
       if (later) local_near[s] = near;
     }
-    block_ranges_valid_ = false;  // the data changes from here on
     gather_leaf_flags(local_sig, sig);
     if (share) {
       refine_sig->assign(n, 0);
@@ -1528,7 +1535,6 @@ const typename AdaptiveGrid<Dim>::DetailStencils& AdaptiveGrid<Dim>::block_detai
 
 template <int Dim>
 std::pair<double, double> AdaptiveGrid<Dim>::block_bounds(int field, std::size_t slot) const {
-  if (block_ranges_valid_) return block_ranges_[static_cast<std::size_t>(field) * local_blocks() + slot];
   return value_range(data_[static_cast<std::size_t>(field)].data() + slot * block_volume_, block_volume_);
 }
 

@@ -195,8 +195,12 @@ class AdaptiveGrid {
   /// (those whose prediction reads only what a family of children holds): what tagging
   /// compares with the threshold, bitwise the maximum of block_details (ghosts must be filled).
   std::pair<double, double> largest_details(int field, std::size_t slot) const;
-  /// Global significance scale per field (1 for absolute, max |u| of the field's group).
-  std::vector<double> field_scales(const ThresholdConfig& threshold) const;
+  /// Global significance scale per field (1 for absolute, max |u| of the field's group). With
+  /// `ranges` (linf normalisation), the same pass also gives each local block's range of values
+  /// per field (field-major: field * local_blocks() + slot), ghosts included, as block_bounds
+  /// would compute it; with absolute normalisation there is no pass and `ranges` is left empty.
+  std::vector<double> field_scales(const ThresholdConfig& threshold,
+                                   std::vector<std::pair<double, double>>* ranges = nullptr) const;
   /// Global number of significant coefficients (ghosts must be filled).
   std::int64_t significant_points(const ThresholdConfig& threshold) const;
 
@@ -307,8 +311,10 @@ class AdaptiveGrid {
   /// Whether a local block holds a significant point (any field above any_fraction times its
   /// threshold: coarsen_fraction in a coarsen pass), and whether it holds one among its near
   /// points (above the threshold itself: what the refine pass refines).
-  std::pair<bool, bool> block_significance(std::size_t slot, const ThresholdConfig& th,
-                                           std::span<const double> scale, double any_fraction) const;
+  /// `ranges`: field_scales' block ranges, or empty (then block_bounds reads the block).
+  std::pair<bool, bool> block_significance(std::size_t slot, const ThresholdConfig& th, std::span<const double> scale,
+                                           std::span<const std::pair<double, double>> ranges,
+                                           double any_fraction) const;
   /// One adaptation pass, alone or as part of adapt_cycle (refine_sig: the refine pass's
   /// significance, computed by the coarsen pass, used by the refine pass; forced_leaves: the
   /// forced region's flag per leaf, used if it has one per leaf, stored there otherwise).
@@ -326,10 +332,6 @@ class AdaptiveGrid {
   mutable std::vector<double> parent_array_;             // parent_significant: the assembled parent
   mutable std::vector<std::pair<int, std::ptrdiff_t>> parent_sources_;  // ... and where its points come from
   mutable std::vector<std::uint8_t> bound_rest_;  // block_significance: calls left without the range bound
-  /// Each block's range of values per field (field-major), from field_scales' pass, for
-  /// block_bounds while the tagging that asked for the scales runs (valid only then).
-  mutable std::vector<std::pair<double, double>> block_ranges_;
-  mutable bool block_ranges_valid_ = false;
   mutable std::vector<int> first_field_;  // block_significance: the field it tries first
 };
 

@@ -50,15 +50,15 @@ def sod_grid_stays_coarse_at_small_eps():
     expect(fraction <= 0.3, f"eps 1e-4 at 4096 points keeps {fraction:.3f} of the points (<= 0.3)")
     expect(e_adaptive <= 1.05 * e_uniform,
            f"at the uniform grid's error: L1 rho {e_adaptive:.3e} against {e_uniform:.3e} (within 5%)")
-    # The adaptation's cost split by kind of cycle (bench/adapt_cost.py prints it): the mean
-    # cycle is the mix of settled and changing cycles in the reported proportion.
+    # The adaptation's cost split by kind of cycle (bench/adapt_cost.py prints it; timings are
+    # printed, not compared): each kind is reported when cycles of that kind ran, and a uniform
+    # run, which never adapts, reports neither.
     m = adaptive["metrics"]
     f = m["adapt_changing_fraction"]
     expect(0 < f < 1, f"some cycles change the grid, most do not (fraction {f:.3f})")
-    mix = (1 - f) * m["adapt_settled_cycle_s"] + f * m["adapt_changing_cycle_s"]
-    expect(abs(mix - m["adapt_cycle_s"]) <= 1e-9 * m["adapt_cycle_s"] + 1e-15,
-           f"settled {m['adapt_settled_cycle_s']:.3e} s and changing {m['adapt_changing_cycle_s']:.3e} s cycles "
-           f"average to the mean cycle {m['adapt_cycle_s']:.3e} s")
+    for key in ("adapt_settled_cycle_s", "adapt_changing_cycle_s"):
+        expect(key in m and m[key] > 0, f"{key} reported and positive ({m.get(key)})")
+        expect(key not in uniform["metrics"], f"{key} not reported by the uniform run")
 
 
 def vortex_order_uniform():
