@@ -41,7 +41,24 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   // order on any number of ranks (by leaf along the curve, then point), and the fill sums them
   // in that order, so a ghost is bitwise the same on 1 and on several ranks.
   std::vector<std::int32_t> remote_lead;
+  // Per row: 0, or for a row summed from other ghost rows (below) the number of odd axes of its
+  // point less one: such rows are filled after every row with a lower stage.
+  std::vector<std::uint8_t> row_stage;
   std::vector<std::uint8_t> kind;        // per local array point (GhostKind)
+  // Separable prolongation. A ghost point predicted from a coarser leaf with several odd axes is
+  // the tensor product of one-dimensional Deslauriers-Dubuc stencils: (ghost_order)^k terms for
+  // k odd axes (36 in 2D with ghost_order 6). Along one odd axis A (the one on which it lies
+  // least far out: inside the block but for corner ghosts) it is instead summed from the
+  // `ghost_order` points of its line along A at the stencil's even positions, each the
+  // prediction along the remaining odd axes. Where such a point is one of the block's ghosts, no
+  // farther out along A and in a coarser leaf, that ghost holds this prediction already (its
+  // own row); the others are "scratch" points: rows of the plan like ghosts, stored after the
+  // blocks in each field array (from scratch_start on, each block's contiguous, from
+  // block_scratch_begin). Neighbouring ghosts share most of these points: in 2D a face's odd-odd
+  // rows fall from 36 terms to 6, plus a few scratch rows of 6 at its ends. The sum is the
+  // tensor's in another order (equal to round-off), and the same on any number of ranks.
+  std::int64_t scratch_start = 0;  // local blocks x block volume when built
+  std::vector<std::int32_t> block_scratch_begin;
   // Per local block, for reuse after an adaptation: its first row, whether any of its terms is
   // remote, its position along the curve, and the leaves its rows were resolved from (as local
   // slots, -1 for another rank's; flattened); per local term, the local block it reads (so a
@@ -50,7 +67,8 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   std::vector<char> block_has_remote, block_rebuilt;  // ... and whether its rows were built afresh
   std::vector<std::uint64_t> block_curve;
   std::vector<std::int32_t> block_dependencies;
-  std::vector<std::int32_t> local_src_slot;
+  std::vector<std::int32_t> local_src_slot;  // kScratchSlot for a scratch point
+  static constexpr std::int32_t kScratchSlot = -1;
   // The rows again, sorted for filling: copies (one local term of weight 1, nothing remote:
   // same-level neighbours and injection from finer leaves, most ghosts), merged into runs of
   // consecutive points (a ghost row facing one neighbour reads one of its rows), and weighted
@@ -64,6 +82,9 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   // by the last rebuild (both groups: the others' ghosts came through the adaptation unchanged).
   std::array<std::vector<CopyRun>, 3> copy_runs;
   std::array<std::vector<std::int32_t>, 3> sum_rows, remote_rows;
+  // Per list and stage (1, 2: index stage - 1), the rows summed from other ghost rows: filled
+  // after everything else, stage by stage (their terms are all local).
+  std::array<std::array<std::vector<std::int32_t>, 2>, 3> derived_rows;
   // Messages: point-major buffers [point][field], one contiguous range per peer rank.
   std::vector<int> recv_rank, recv_first, recv_count;
   std::vector<int> send_rank, send_first, send_count;
@@ -74,11 +95,15 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   /// Empties every list, keeping its storage (a rebuild refills the plan it replaced last time).
   void clear() {
     auto empty = [](auto&... lists) { (lists.clear(), ...); };
-    empty(dest, local_begin, remote_begin, local_src, local_w, remote_src, remote_w, remote_lead, kind, block_row_begin,
-          block_dependency_begin, block_has_remote, block_rebuilt, block_curve, block_dependencies, local_src_slot,
-          recv_rank, recv_first, recv_count, send_rank, send_first, send_count, send_src, send_buffer, recv_buffer,
-          requests);
-    for (std::size_t list = 0; list < copy_runs.size(); ++list) empty(copy_runs[list], sum_rows[list], remote_rows[list]);
+    empty(dest, local_begin, remote_begin, local_src, local_w, remote_src, remote_w, remote_lead, row_stage, kind,
+          block_scratch_begin, block_row_begin, block_dependency_begin, block_has_remote, block_rebuilt, block_curve,
+          block_dependencies, local_src_slot, recv_rank, recv_first, recv_count, send_rank, send_first, send_count,
+          send_src, send_buffer, recv_buffer, requests);
+    scratch_start = 0;
+    for (std::size_t list = 0; list < copy_runs.size(); ++list) {
+      empty(copy_runs[list], sum_rows[list], remote_rows[list]);
+      for (auto& stage : derived_rows[list]) stage.clear();
+    }
   }
 };
 
@@ -362,6 +387,12 @@ struct PointResolver {
       out.push_back({leaf, point, weight});
       return;
     }
+    predict(level, idx, weight, out);
+  }
+
+  /// Appends the terms of the Deslauriers-Dubuc prediction at (level, idx) from level - 1 (what
+  /// resolve gives where a coarser leaf contains the point), whichever leaf contains it.
+  void predict(int level, const std::array<GlobalIndex64, Dim>& idx, double weight, std::vector<Term>& out) const {
     std::array<LineStencil, Dim> st{};
     for (int a = 0; a < Dim; ++a) {
       const auto au = static_cast<std::size_t>(a);
@@ -421,10 +452,14 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
   plan.remote_begin.push_back(0);
   plan.block_row_begin.push_back(0);
   plan.block_dependency_begin.push_back(0);
+  plan.block_scratch_begin.push_back(0);
+  plan.scratch_start = static_cast<std::int64_t>(local_keys_.size() * block_volume_);
+  std::int64_t scratch_points = 0;  // so far, over the blocks done
   // Requests to other ranks: (leaf, point) -> position in that rank's list.
   std::vector<std::map<std::pair<std::size_t, std::int64_t>, int>> wanted(static_cast<std::size_t>(ranks_));
   std::vector<std::pair<int, int>> remote_pending;  // (rank, position) per remote term
   std::vector<Term> terms;
+  std::vector<std::pair<Index, std::array<GlobalIndex64, Dim>>> scratch;  // the block's (GhostPlan)
 
   // Reuse after an adaptation. A block's rows are a function of the leaves containing the
   // points its ghosts resolve to (leaves tile the domain, so whichever lookup found them, the
@@ -474,6 +509,98 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
     plan.block_dependencies.reserve(previous->block_dependencies.size());
   }
 
+  // Appends the terms a resolution left in `terms` to row `row`: sorted by (leaf, point), the
+  // same order on any number of ranks, repeated points merged, zero weights dropped.
+  auto add_terms = [&](std::size_t row) {
+    if (terms.size() > 1) std::sort(terms.begin(), terms.end(), [](const Term& x, const Term& y) {
+        return x.leaf != y.leaf ? x.leaf < y.leaf : x.point < y.point;
+      });
+    for (std::size_t t = 0; t < terms.size(); ++t) {
+      double w = terms[t].weight;
+      while (t + 1 < terms.size() && terms[t + 1].leaf == terms[t].leaf && terms[t + 1].point == terms[t].point)
+        w += terms[++t].weight;
+      if (w == 0.0) continue;
+      const std::size_t leaf = terms[t].leaf;
+      const bool mine = leaf >= first_leaf_ && leaf < first_leaf_ + local_keys_.size();  // no search
+      const int who = mine ? rank_ : owner(leaf);
+      if (who == rank_) {
+        std::array<int, Dim> q{};
+        // 32-bit division: a block has at most 32^3 points (64-bit idiv dominated here).
+        auto rest = static_cast<std::uint32_t>(terms[t].point);
+        const auto ubs = static_cast<std::uint32_t>(bs);
+        for (int a = 0; a < Dim; ++a) {
+          q[static_cast<std::size_t>(a)] = static_cast<int>(rest % ubs) + g;
+          rest /= ubs;
+        }
+        plan.local_src.push_back(static_cast<std::int64_t>((leaf - first_leaf_) * block_volume_) + shape.index(q));
+        plan.local_src_slot.push_back(static_cast<std::int32_t>(leaf - first_leaf_));
+        plan.local_w.push_back(w);
+      } else {
+        auto& list = wanted[static_cast<std::size_t>(who)];
+        const auto [it, added] = list.try_emplace({leaf, terms[t].point}, static_cast<int>(list.size()));
+        remote_pending.emplace_back(who, it->second);
+        plan.remote_w.push_back(w);
+        if (static_cast<std::int32_t>(plan.local_src.size()) == plan.local_begin[row]) ++plan.remote_lead[row];
+      }
+    }
+  };
+  // How far array coordinate x lies outside the interior along an axis (0 inside).
+  auto depth = [&](int x) { return x < g ? g - x : x >= g + bs ? x - g - bs + 1 : 0; };
+  // The separable form (GhostPlan) of row `row`: ghost i (global idx) of block `slot`, predicted
+  // from a coarser leaf. Returns false, adding nothing, where it has none (fewer than two odd
+  // axes). It runs along the odd axis on which the ghost lies least far out (inside the block
+  // for all but corner ghosts). Of the points it reads, the block's own ghosts are those no
+  // farther out along that axis, so no farther out at all: each is filled whenever this row is
+  // (a ghost within a stencil reach has its whole line towards the block within it).
+  auto add_separable_row = [&](std::size_t slot, int level, const Index& i, const std::array<GlobalIndex64, Dim>& idx,
+                               const std::array<GlobalIndex64, Dim>& points_along, std::size_t row) {
+    int odd_axes = 0, along = -1;
+    for (int a = 0; a < Dim; ++a) {
+      const auto au = static_cast<std::size_t>(a);
+      if (idx[au] % 2 == 0) continue;
+      ++odd_axes;
+      if (along < 0 || depth(i[au]) < depth(i[static_cast<std::size_t>(along)])) along = a;
+    }
+    if (odd_axes < 2) return false;
+    const auto A = static_cast<std::size_t>(along);
+    // (Then a point of its line inside the block along A is a ghost too: the axis chosen is the
+    // one of least depth, so another is outside. Checked all the same.)
+    bool others_inside = true;
+    for (int a = 0; a < Dim; ++a)
+      if (a != along) others_inside = others_inside && depth(i[static_cast<std::size_t>(a)]) == 0;
+    const GlobalIndex64 n = points_along[A];
+    const LineStencil line = dd_line(config_.ghost_order, idx[A], n, config_.periodic[A]);
+    for (int m = 0; m < line.size; ++m) {
+      const auto mu = static_cast<std::size_t>(m);
+      Index at = i;
+      at[A] += static_cast<int>(line.even[mu] - idx[A]);
+      std::array<GlobalIndex64, Dim> point = idx;
+      point[A] = line.even[mu];
+      while (point[A] < 0) point[A] += n;  // periodic images, as resolve() takes them
+      while (point[A] >= n) point[A] -= n;
+      // One of this block's ghosts, no farther out, holds the prediction if a coarser leaf
+      // contains it too.
+      bool own = at[A] >= 0 && at[A] < bs + 2 * g && depth(at[A]) <= depth(i[A]) && (depth(at[A]) > 0 || !others_inside);
+      if (own) {
+        resolver.leaf_containing(level, point);
+        own = resolver.last_level < level;
+      }
+      if (own) {
+        plan.local_src.push_back(static_cast<std::int64_t>(slot * block_volume_) + shape.index(at));
+        plan.local_src_slot.push_back(static_cast<std::int32_t>(slot));
+      } else {
+        std::size_t q = 0;
+        while (q < scratch.size() && scratch[q].first != at) ++q;
+        if (q == scratch.size()) scratch.emplace_back(at, point);
+        plan.local_src.push_back(plan.scratch_start + scratch_points + static_cast<std::int64_t>(q));
+        plan.local_src_slot.push_back(GhostPlan::kScratchSlot);
+      }
+      plan.local_w.push_back(line.weight[mu]);
+    }
+    plan.row_stage[row] = static_cast<std::uint8_t>(odd_axes - 1);
+    return true;
+  };
+
   for (std::size_t s = 0; s < local_keys_.size(); ++s) {
     const Key key = local_keys_[s];
     plan.block_curve.push_back(forest_.leaf_curve_index(first_leaf_ + s));
@@ -486,9 +613,15 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
       const auto t1 = static_cast<std::size_t>(old.local_begin[k1]);
       const auto shift = (static_cast<std::int64_t>(s) - static_cast<std::int64_t>(*o)) * volume;
       const std::size_t rows = plan.dest.size(), first_term = plan.local_src.size();
+      // Its scratch points keep their order, moved to where this plan's scratch for it starts.
+      const std::int64_t scratch_shift =
+          plan.scratch_start + scratch_points - (old.scratch_start + old.block_scratch_begin[*o]);
       plan.dest.resize(rows + (k1 - k0));
       plan.remote_lead.resize(plan.dest.size(), 0);  // a reused block has no remote terms
-      for (std::size_t k = k0; k < k1; ++k) plan.dest[rows + k - k0] = old.dest[k] + shift;
+      plan.row_stage.insert(plan.row_stage.end(), old.row_stage.begin() + static_cast<std::ptrdiff_t>(k0),
+                            old.row_stage.begin() + static_cast<std::ptrdiff_t>(k1));
+      for (std::size_t k = k0; k < k1; ++k)
+        plan.dest[rows + k - k0] = old.dest[k] + (old.dest[k] >= old.scratch_start ? scratch_shift : shift);
       const auto term_shift = static_cast<std::int32_t>(first_term) - static_cast<std::int32_t>(t0);
       plan.local_begin.resize(rows + 1 + (k1 - k0));
       for (std::size_t k = k0 + 1; k <= k1; ++k) plan.local_begin[rows + k - k0] = old.local_begin[k] + term_shift;
@@ -499,6 +632,11 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
                           old.local_w.begin() + static_cast<std::ptrdiff_t>(t1));
       for (std::size_t t = t0; t < t1; ++t) {
         const std::int32_t from = old.local_src_slot[t];
+        if (from == GhostPlan::kScratchSlot) {
+          plan.local_src[first_term + t - t0] = old.local_src[t] + scratch_shift;
+          plan.local_src_slot[first_term + t - t0] = from;
+          continue;
+        }
         const std::int64_t to = slot_now[static_cast<std::size_t>(from)];
         plan.local_src[first_term + t - t0] = old.local_src[t] + (to - from) * volume;
         plan.local_src_slot[first_term + t - t0] = static_cast<std::int32_t>(to);
@@ -510,6 +648,8 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
             static_cast<std::int32_t>(slot_now[static_cast<std::size_t>(old.block_dependencies[static_cast<std::size_t>(d)])]));
       plan.block_has_remote.push_back(0);
       plan.block_rebuilt.push_back(0);
+      scratch_points += old.block_scratch_begin[*o + 1] - old.block_scratch_begin[*o];
+      plan.block_scratch_begin.push_back(static_cast<std::int32_t>(scratch_points));
       plan.block_row_begin.push_back(static_cast<std::int32_t>(plan.dest.size()));
       plan.block_dependency_begin.push_back(static_cast<std::int32_t>(plan.block_dependencies.size()));
       continue;
@@ -528,7 +668,11 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
     plan.local_begin.resize(first_row + ghost_rows + 1);
     plan.remote_begin.resize(first_row + ghost_rows + 1);
     plan.remote_lead.resize(first_row + ghost_rows, 0);
+    plan.row_stage.resize(first_row + ghost_rows, 0);
     std::size_t row = first_row;
+    // This block's scratch points (separable prolongation, GhostPlan): where they would sit in
+    // its array (beyond it along one axis) and their global index.
+    scratch.clear();
     auto end_row = [&] {
       plan.local_begin[row + 1] = static_cast<std::int32_t>(plan.local_src.size());
       plan.remote_begin[row + 1] = static_cast<std::int32_t>(remote_pending.size());
@@ -578,42 +722,33 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
         end_row();
         continue;
       }
+      if (source_level < key.level && add_separable_row(s, key.level, i, idx, points_along, row)) {
+        end_row();
+        continue;
+      }
       terms.clear();
       resolver.resolve(key.level, idx, 1.0, terms);
-      if (terms.size() > 1) std::sort(terms.begin(), terms.end(), [](const Term& x, const Term& y) {
-        return x.leaf != y.leaf ? x.leaf < y.leaf : x.point < y.point;
-      });
-      for (std::size_t t = 0; t < terms.size(); ++t) {
-        double w = terms[t].weight;
-        while (t + 1 < terms.size() && terms[t + 1].leaf == terms[t].leaf && terms[t + 1].point == terms[t].point)
-          w += terms[++t].weight;
-        if (w == 0.0) continue;
-        const std::size_t leaf = terms[t].leaf;
-        const bool mine = leaf >= first_leaf_ && leaf < first_leaf_ + local_keys_.size();  // no search
-        const int who = mine ? rank_ : owner(leaf);
-        if (who == rank_) {
-          std::array<int, Dim> q{};
-          // 32-bit division: a block has at most 32^3 points (64-bit idiv dominated here).
-          auto rest = static_cast<std::uint32_t>(terms[t].point);
-          const auto ubs = static_cast<std::uint32_t>(bs);
-          for (int a = 0; a < Dim; ++a) {
-            q[static_cast<std::size_t>(a)] = static_cast<int>(rest % ubs) + g;
-            rest /= ubs;
-          }
-          plan.local_src.push_back(static_cast<std::int64_t>((leaf - first_leaf_) * block_volume_) + shape.index(q));
-          plan.local_src_slot.push_back(static_cast<std::int32_t>(leaf - first_leaf_));
-          plan.local_w.push_back(w);
-        } else {
-          auto& list = wanted[static_cast<std::size_t>(who)];
-          const auto [it, added] = list.try_emplace({leaf, terms[t].point}, static_cast<int>(list.size()));
-          remote_pending.emplace_back(who, it->second);
-          plan.remote_w.push_back(w);
-          if (static_cast<std::int32_t>(plan.local_src.size()) == plan.local_begin[row]) ++plan.remote_lead[row];
-        }
-      }
+      add_terms(row);
       end_row();
     }
     if (row != first_row + ghost_rows) throw std::logic_error("AdaptiveGrid: ghost rows miscounted");
+    // The scratch points' rows: the prediction along the remaining odd axes, whichever leaf
+    // contains the point.
+    const std::size_t scratch_rows = scratch.size();
+    plan.dest.resize(row + scratch_rows);
+    plan.local_begin.resize(row + scratch_rows + 1);
+    plan.remote_begin.resize(row + scratch_rows + 1);
+    plan.remote_lead.resize(row + scratch_rows, 0);
+    plan.row_stage.resize(row + scratch_rows, 0);
+    for (std::size_t q = 0; q < scratch_rows; ++q) {
+      plan.dest[row] = plan.scratch_start + scratch_points + static_cast<std::int64_t>(q);
+      terms.clear();
+      resolver.predict(key.level, scratch[q].second, 1.0, terms);
+      add_terms(row);
+      end_row();
+    }
+    scratch_points += static_cast<std::int64_t>(scratch_rows);
+    plan.block_scratch_begin.push_back(static_cast<std::int32_t>(scratch_points));
     std::sort(found.begin(), found.end());
     found.erase(std::unique(found.begin(), found.end()), found.end());
     for (const std::size_t leaf : found)
@@ -683,6 +818,8 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
   plan.requests.resize(plan.recv_rank.size() + plan.send_rank.size());
   group_ghost_rows(plan);
   spare_plan_ = std::move(previous);
+  // The scratch points sit after the blocks in every field array.
+  for (auto& field : data_) field.resize(static_cast<std::size_t>(plan.scratch_start + scratch_points), 0.0);
 }
 
 template <int Dim>
@@ -691,6 +828,7 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan) const {
     plan.copy_runs[list].clear();
     plan.sum_rows[list].clear();
     plan.remote_rows[list].clear();
+    for (auto& stage : plan.derived_rows[list]) stage.clear();
   }
   // Per array point: its group (0 within the stencil reach, interior points unused).
   const auto shape = layout_.shape();
@@ -708,6 +846,10 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan) const {
     group_of[p] = outside == 0 || deepest <= stencil_reach_[static_cast<std::size_t>(outside - 1)] ? 0 : 1;
   }
   auto add = [&](std::size_t list, std::size_t k) {
+    if (plan.row_stage[k] > 0) {
+      plan.derived_rows[list][plan.row_stage[k] - 1u].push_back(static_cast<std::int32_t>(k));
+      return;
+    }
     // A row with remote terms is summed whole once its messages are in (fill_ghost_lists), its
     // local terms with them: not in the local pass as well.
     if (plan.remote_begin[k + 1] != plan.remote_begin[k]) {
@@ -726,11 +868,29 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan) const {
       plan.sum_rows[list].push_back(static_cast<std::int32_t>(k));
     }
   };
+  // A scratch point is filled with the first group that reads it.
+  std::vector<std::uint8_t> scratch_group;
   for (std::size_t s = 0; s + 1 < plan.block_row_begin.size(); ++s) {
     const auto base = static_cast<std::int64_t>(s * block_volume_);
     const bool rebuilt = plan.block_rebuilt[s] != 0;
-    for (auto k = static_cast<std::size_t>(plan.block_row_begin[s]); k < static_cast<std::size_t>(plan.block_row_begin[s + 1]); ++k) {
-      add(group_of[static_cast<std::size_t>(plan.dest[k] - base)], k);
+    const auto first_row = static_cast<std::size_t>(plan.block_row_begin[s]);
+    const auto end_row = static_cast<std::size_t>(plan.block_row_begin[s + 1]);
+    const std::int64_t scratch_base = plan.scratch_start + plan.block_scratch_begin[s];
+    scratch_group.assign(static_cast<std::size_t>(plan.block_scratch_begin[s + 1] - plan.block_scratch_begin[s]), 1);
+    for (std::size_t k = first_row; k < end_row; ++k) {
+      if (plan.row_stage[k] == 0) continue;
+      const std::uint8_t group = group_of[static_cast<std::size_t>(plan.dest[k] - base)];
+      for (auto t = static_cast<std::size_t>(plan.local_begin[k]); t < static_cast<std::size_t>(plan.local_begin[k + 1]); ++t)
+        if (plan.local_src_slot[t] == GhostPlan::kScratchSlot) {
+          auto& to = scratch_group[static_cast<std::size_t>(plan.local_src[t] - scratch_base)];
+          to = std::min(to, group);
+        }
+    }
+    for (std::size_t k = first_row; k < end_row; ++k) {
+      const bool in_scratch = plan.dest[k] >= plan.scratch_start;
+      add(in_scratch ? scratch_group[static_cast<std::size_t>(plan.dest[k] - scratch_base)]
+                     : group_of[static_cast<std::size_t>(plan.dest[k] - base)],
+          k);
       if (rebuilt) add(kRebuiltRows, k);
     }
   }
@@ -748,32 +908,38 @@ void AdaptiveGrid<Dim>::set_stencil_reach(int along_axis, int across_two_axes) {
 
 namespace {
 
-/// The local terms of a ghost plan for kFields consecutive field arrays at once. Sources are
-/// interior points, so the order of the rows does not matter. Each field's sum is accumulated
-/// from 0 in term order however many fields go together, so the values are bitwise the same;
-/// with the fields side by side a row's indices and weights are read once, and its kFields sums
-/// are independent chains (a lone sum waits on each add). A copy is written 0 + u, what the
-/// weighted sum gives (-0 becomes +0).
+/// Rows of local terms (`rows`) of a ghost plan for kFields consecutive field arrays at once.
+/// Each field's sum is accumulated from 0 in term order however many fields go together, so the
+/// values are bitwise the same; with the fields side by side a row's indices and weights are
+/// read once, and its kFields sums are independent chains (a lone sum waits on each add).
 template <int kFields, typename Plan>
-void fill_local_terms(const Plan& plan, std::size_t list, std::vector<double>* fields) {
+void sum_local_rows(const Plan& plan, const std::vector<std::int32_t>& rows, std::vector<double>* fields) {
   std::array<double*, kFields> u{};
   for (std::size_t f = 0; f < kFields; ++f) u[f] = fields[f].data();
-  for (const auto& run : plan.copy_runs[list])
-    for (std::size_t f = 0; f < kFields; ++f) {
-      double* to = u[f] + run.dest;
-      const double* from = u[f] + run.src;
-      for (std::int32_t k = 0; k < run.length; ++k) to[k] = 0.0 + from[k];
-    }
   const auto* begin = plan.local_begin.data();
   const auto* src = plan.local_src.data();
   const auto* weight = plan.local_w.data();
-  for (const std::int32_t row : plan.sum_rows[list]) {
+  for (const std::int32_t row : rows) {
     const auto k = static_cast<std::size_t>(row);
     std::array<double, kFields> v{};
     for (auto t = static_cast<std::size_t>(begin[k]); t < static_cast<std::size_t>(begin[k + 1]); ++t)
       for (std::size_t f = 0; f < kFields; ++f) v[f] += weight[t] * u[f][src[t]];
     for (std::size_t f = 0; f < kFields; ++f) u[f][plan.dest[k]] = v[f];
   }
+}
+
+/// The local rows of a ghost plan's list (copies and sums) for kFields consecutive field arrays.
+/// Their sources are interior points, so the order of the rows does not matter. A copy is
+/// written 0 + u, what the weighted sum gives (-0 becomes +0).
+template <int kFields, typename Plan>
+void fill_local_terms(const Plan& plan, std::size_t list, std::vector<double>* fields) {
+  for (const auto& run : plan.copy_runs[list])
+    for (std::size_t f = 0; f < kFields; ++f) {
+      double* to = fields[f].data() + run.dest;
+      const double* from = fields[f].data() + run.src;
+      for (std::int32_t k = 0; k < run.length; ++k) to[k] = 0.0 + from[k];
+    }
+  sum_local_rows<kFields>(plan, plan.sum_rows[list], fields);
 }
 
 }  // namespace
@@ -787,6 +953,21 @@ void AdaptiveGrid<Dim>::fill_local_ghosts(const GhostPlan& plan, std::size_t lis
     default:
       for (auto& field : data_) fill_local_terms<1>(plan, list, &field);
   }
+}
+
+template <int Dim>
+void AdaptiveGrid<Dim>::fill_separable_ghosts(const GhostPlan& plan, std::initializer_list<std::size_t> lists) {
+  for (std::size_t stage = 0; stage < 2; ++stage)
+    for (const std::size_t list : lists) {
+      const auto& rows = plan.derived_rows[list][stage];
+      if (rows.empty()) continue;
+      switch (data_.size()) {
+        case 4: sum_local_rows<4>(plan, rows, data_.data()); break;
+        case 5: sum_local_rows<5>(plan, rows, data_.data()); break;
+        default:
+          for (auto& field : data_) sum_local_rows<1>(plan, rows, &field);
+      }
+    }
 }
 
 template <int Dim>
@@ -818,28 +999,30 @@ void AdaptiveGrid<Dim>::fill_ghost_lists(std::initializer_list<std::size_t> list
   // share most of their remote points).
   for (const std::size_t list : lists) fill_local_ghosts(plan, list);
   MPI_Waitall(static_cast<int>(nreq), plan.requests.data(), MPI_STATUSES_IGNORE);
-  if (plan.remote_src.empty()) return;
   // The rows with remote terms, all their terms in their order (the leading remote ones, the
   // local ones, the others): the same additions one rank makes.
-  for (const std::size_t list : lists)
-    for (std::size_t f = 0; f < Fu; ++f) {
-      double* u = data_[f].data();
-      const double* received = plan.recv_buffer.data() + f;
-      auto add_remote = [&](double& v, std::int32_t from, std::int32_t to) {
-        for (auto t = static_cast<std::size_t>(from); t < static_cast<std::size_t>(to); ++t)
-          v += plan.remote_w[t] * received[plan.remote_src[t]];
-      };
-      for (const std::int32_t row : plan.remote_rows[list]) {
-        const auto k = static_cast<std::size_t>(row);
-        const std::int32_t lead = plan.remote_begin[k] + plan.remote_lead[k];
-        double v = 0;
-        add_remote(v, plan.remote_begin[k], lead);
-        for (auto t = static_cast<std::size_t>(plan.local_begin[k]); t < static_cast<std::size_t>(plan.local_begin[k + 1]); ++t)
-          v += plan.local_w[t] * u[plan.local_src[t]];
-        add_remote(v, lead, plan.remote_begin[k + 1]);
-        u[plan.dest[k]] = v;
+  if (!plan.remote_src.empty())
+    for (const std::size_t list : lists)
+      for (std::size_t f = 0; f < Fu; ++f) {
+        double* u = data_[f].data();
+        const double* received = plan.recv_buffer.data() + f;
+        auto add_remote = [&](double& v, std::int32_t from, std::int32_t to) {
+          for (auto t = static_cast<std::size_t>(from); t < static_cast<std::size_t>(to); ++t)
+            v += plan.remote_w[t] * received[plan.remote_src[t]];
+        };
+        for (const std::int32_t row : plan.remote_rows[list]) {
+          const auto k = static_cast<std::size_t>(row);
+          const std::int32_t lead = plan.remote_begin[k] + plan.remote_lead[k];
+          double v = 0;
+          add_remote(v, plan.remote_begin[k], lead);
+          for (auto t = static_cast<std::size_t>(plan.local_begin[k]); t < static_cast<std::size_t>(plan.local_begin[k + 1]); ++t)
+            v += plan.local_w[t] * u[plan.local_src[t]];
+          add_remote(v, lead, plan.remote_begin[k + 1]);
+          u[plan.dest[k]] = v;
+        }
       }
-    }
+  // Last, the rows summed from the ghosts and scratch points filled above.
+  fill_separable_ghosts(plan, lists);
 }
 
 template <int Dim>
@@ -850,7 +1033,8 @@ GhostKind AdaptiveGrid<Dim>::ghost_kind(std::size_t slot, std::ptrdiff_t array_i
 template <int Dim>
 std::array<std::int64_t, 4> AdaptiveGrid<Dim>::ghost_counts() const {
   std::array<std::int64_t, 4> n{};
-  for (const auto d : plan_->dest) ++n[plan_->kind[static_cast<std::size_t>(d)]];
+  for (const auto d : plan_->dest)
+    if (d < plan_->scratch_start) ++n[plan_->kind[static_cast<std::size_t>(d)]];
   return n;
 }
 

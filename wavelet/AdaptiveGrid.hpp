@@ -242,6 +242,9 @@ class AdaptiveGrid {
   struct GhostPlan;
   /// The part of a ghost fill that reads this rank's blocks, for one list of rows.
   void fill_local_ghosts(const GhostPlan& plan, std::size_t list);
+  /// The rows of the lists summed from other ghost rows (separable prolongation, GhostPlan),
+  /// stage by stage: after every other row of the lists.
+  void fill_separable_ghosts(const GhostPlan& plan, std::initializer_list<std::size_t> lists);
   /// Fills the rows of the plan's lists: 0 and 1 (fill_ghosts), 0 (fill_stencil_ghosts) or
   /// kRebuiltRows (after an adaptation).
   void fill_ghost_lists(std::initializer_list<std::size_t> lists);

@@ -350,6 +350,15 @@ void stencil_ghosts_are_those_of_a_full_fill() {
   grid.sample(field);
   grid.fill_ghosts();
   const auto full = snapshot(grid);
+  // Every ghost and every intermediate point of the separable prolongation (stored beside the
+  // blocks) then holds another field's values: a stencil fill that read one it does not fill
+  // would show it.
+  grid.sample([](const std::array<double, Dim>& x, std::span<double> v) {
+    v[0] = 1.0 + x[0];
+    v[1] = -3.0;
+  });
+  grid.fill_ghosts();
+  grid.sample(field);
   constexpr int kAxis = 2, kCorner = 1;
   grid.set_stencil_reach(kAxis, kCorner);
   const auto shape = grid.layout().shape();
