@@ -49,7 +49,10 @@
 //
 // Storage. Each field is one array of local blocks; a block is an ArrayShape of Bs + 2g points
 // per axis (g ghost layers, by default the least that prediction and derivatives read:
-// max(order - 1, accuracy / 2)).
+// max(order - 1, accuracy / 2)). After the blocks, each array holds the ghost plan's scratch
+// points: a ghost predicted from a coarser leaf along several odd axes is summed along one of
+// them from predictions along the others (separable prolongation: 6 terms instead of 36 in 2D),
+// and those of its intermediate points that are not the block's own ghosts are kept there.
 // Ghost exchange across ranks uses non-blocking point-to-point messages with a plan built once
 // per adaptation. A caller whose stencils read fewer ghosts than adaptation needs (a solver's
 // right-hand side: along the axes, and into corners only as far as its mixed derivatives) states
