@@ -140,6 +140,12 @@ void BM_GhostFill(benchmark::State& state) {
   const double blocks = static_cast<double>(grid.global_blocks());
   state.counters["blocks"] = blocks;
   state.counters["blocks_per_s"] = benchmark::Counter(blocks, benchmark::Counter::kIsIterationInvariantRate);
+  // What a fill computes (copies, weighted terms, the separable prolongation's scratch points).
+  const auto plan = grid.ghost_plan_stats();
+  state.counters["copies"] = static_cast<double>(plan.copies);
+  state.counters["terms"] = static_cast<double>(plan.weighted_terms);
+  state.counters["scratch"] = static_cast<double>(plan.scratch_points);
+  state.counters["longest_row"] = plan.longest_row;
 }
 
 // The full cycle with data moving: refine every block at the coarsest level present (tag,

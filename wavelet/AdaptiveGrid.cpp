@@ -1038,6 +1038,22 @@ std::array<std::int64_t, 4> AdaptiveGrid<Dim>::ghost_counts() const {
   return n;
 }
 
+template <int Dim>
+GhostPlanStats AdaptiveGrid<Dim>::ghost_plan_stats() const {
+  const GhostPlan& plan = *plan_;
+  GhostPlanStats stats;
+  stats.rows = static_cast<std::int64_t>(plan.dest.size());
+  for (std::size_t k = 0; k < plan.dest.size(); ++k) {
+    const int local = plan.local_begin[k + 1] - plan.local_begin[k];
+    const int terms = local + plan.remote_begin[k + 1] - plan.remote_begin[k];
+    stats.scratch_points += plan.dest[k] >= plan.scratch_start ? 1 : 0;
+    if (terms == 1 && local == 1 && plan.local_w[static_cast<std::size_t>(plan.local_begin[k])] == 1.0) ++stats.copies;
+    else stats.weighted_terms += terms;
+    stats.longest_row = std::max(stats.longest_row, terms);
+  }
+  return stats;
+}
+
 // ---------------------------------------------------------------------------------------------
 // Wavelet coefficients.
 

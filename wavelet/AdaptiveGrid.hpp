@@ -126,6 +126,15 @@ enum class AdaptPass { kRefine, kCoarsen };
 /// How a ghost point got its value (for diagnostics and tests).
 enum class GhostKind : std::uint8_t { kSameLevel, kFromFiner, kFromCoarser, kOutsideDomain };
 
+/// What one full ghost fill of this rank computes (AdaptiveGrid::ghost_plan_stats).
+struct GhostPlanStats {
+  std::int64_t rows = 0;            ///< ghost points and scratch points filled
+  std::int64_t scratch_points = 0;  ///< intermediate points of the separable prolongation
+  std::int64_t copies = 0;          ///< rows that copy one value
+  std::int64_t weighted_terms = 0;  ///< terms of the other rows (local and received)
+  int longest_row = 0;              ///< most terms in one row
+};
+
 template <int Dim>
 class AdaptiveGrid {
  public:
@@ -189,6 +198,8 @@ class AdaptiveGrid {
   GhostKind ghost_kind(std::size_t slot, std::ptrdiff_t array_index) const;
   /// Number of ghost points of each kind over local blocks (index: GhostKind).
   std::array<std::int64_t, 4> ghost_counts() const;
+  /// The size of this rank's ghost plan: what a full fill computes.
+  GhostPlanStats ghost_plan_stats() const;
 
   // --- wavelet coefficients ---
   /// Writes d (interior points, 0 at all-even ones) of a field of a block into `out`

@@ -182,6 +182,16 @@ void ghosts_exact_for_polynomials(int ghost_order, int block_size) {
   for (auto kind : {gw::GhostKind::kSameLevel, gw::GhostKind::kFromFiner, gw::GhostKind::kFromCoarser})
     EXPECT_LT(max_error(grid, 0, polynomial, true, kind), 1e-12)
         << "kind " << static_cast<int>(kind) << ", ghost order " << ghost_order << ", block size " << block_size;
+  // Ghosts odd along several axes are cascaded, not flattened: no row has the full tensor's
+  // ghost_order^Dim terms, only those of a prediction along one axis (and, in 3D, the scratch
+  // points' predictions along two).
+  const auto stats = grid.ghost_plan_stats();
+  int longest = ghost_order;
+  for (int a = 2; a < Dim; ++a) longest *= ghost_order;
+  EXPECT_LE(stats.longest_row, longest) << "ghost order " << ghost_order << ", block size " << block_size;
+  if (Dim > 1) {
+    EXPECT_GT(global_sum(stats.scratch_points), 0);
+  }
 }
 TEST(AdaptiveGrid, GhostsExactForPolynomials1D) {
   ghosts_exact_for_polynomials<1>(4, 8);
