@@ -460,6 +460,22 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
   std::vector<std::pair<int, int>> remote_pending;  // (rank, position) per remote term
   std::vector<Term> terms;
   std::vector<std::pair<Index, std::array<GlobalIndex64, Dim>>> scratch;  // the block's (GhostPlan)
+  // Where in `scratch` each position around a block is (-1: none yet), over the block's array
+  // widened by a stencil's reach on every side, and which entries were set (reset per block).
+  const int scratch_margin = 2 * kMaxPredictOrder;
+  const int scratch_width = bs + 2 * g + 2 * scratch_margin;
+  std::size_t scratch_table_size = 1;
+  for (int a = 0; a < Dim; ++a) scratch_table_size *= static_cast<std::size_t>(scratch_width);
+  std::vector<std::int32_t> scratch_at(scratch_table_size, -1);
+  auto scratch_cell = [&](const Index& at) {
+    std::size_t cell = 0;
+    for (int a = Dim - 1; a >= 0; --a) {
+      const int x = at[static_cast<std::size_t>(a)] + scratch_margin;
+      if (x < 0 || x >= scratch_width) throw std::logic_error("AdaptiveGrid: scratch point beyond a stencil's reach");
+      cell = cell * static_cast<std::size_t>(scratch_width) + static_cast<std::size_t>(x);
+    }
+    return cell;
+  };
 
   // Reuse after an adaptation. A block's rows are a function of the leaves containing the
   // points its ghosts resolve to (leaves tile the domain, so whichever lookup found them, the
@@ -589,9 +605,12 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
         plan.local_src.push_back(static_cast<std::int64_t>(slot * block_volume_) + shape.index(at));
         plan.local_src_slot.push_back(static_cast<std::int32_t>(slot));
       } else {
-        std::size_t q = 0;
-        while (q < scratch.size() && scratch[q].first != at) ++q;
-        if (q == scratch.size()) scratch.emplace_back(at, point);
+        const std::size_t cell = scratch_cell(at);
+        if (scratch_at[cell] < 0) {
+          scratch_at[cell] = static_cast<std::int32_t>(scratch.size());
+          scratch.emplace_back(at, point);
+        }
+        const auto q = static_cast<std::size_t>(scratch_at[cell]);
         plan.local_src.push_back(plan.scratch_start + scratch_points + static_cast<std::int64_t>(q));
         plan.local_src_slot.push_back(GhostPlan::kScratchSlot);
       }
@@ -678,8 +697,14 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
       plan.remote_begin[row + 1] = static_cast<std::int32_t>(remote_pending.size());
       ++row;
     };
+    // The point's array coordinates, counted along (two 64-bit divisions per point in
+    // ArrayShape::coords were a fifth of a rebuild).
+    Index i{};
     for (std::size_t p = 0; p < block_volume_; ++p) {
-      const auto i = shape.coords(static_cast<std::ptrdiff_t>(p));
+      for (std::size_t a = 0; p > 0 && a < static_cast<std::size_t>(Dim); ++a) {
+        if (++i[a] < shape.extent[a]) break;
+        i[a] = 0;
+      }
       bool interior = true, outside = false;
       std::array<GlobalIndex64, Dim> idx{};
       for (int a = 0; a < Dim; ++a) {
@@ -689,7 +714,8 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
         const GlobalIndex64 n = points_along[au];
         GlobalIndex64 v = static_cast<GlobalIndex64>(c[au]) * bs + local;
         if (v < 0 || v >= n) {
-          if (config_.periodic[au]) v = ((v % n) + n) % n;
+          // A ghost reaches less than a block beyond the domain: one period at most.
+          if (config_.periodic[au]) v += v < 0 ? n : -n;
           else outside = true;
         }
         idx[au] = v;
@@ -749,6 +775,7 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
     }
     scratch_points += static_cast<std::int64_t>(scratch_rows);
     plan.block_scratch_begin.push_back(static_cast<std::int32_t>(scratch_points));
+    for (const auto& entry : scratch) scratch_at[scratch_cell(entry.first)] = -1;
     std::sort(found.begin(), found.end());
     found.erase(std::unique(found.begin(), found.end()), found.end());
     for (const std::size_t leaf : found)
