@@ -596,7 +596,8 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
       while (point[A] >= n) point[A] -= n;
       // One of this block's ghosts, no farther out, holds the prediction if a coarser leaf
       // contains it too.
-      bool own = at[A] >= 0 && at[A] < bs + 2 * g && depth(at[A]) <= depth(i[A]) && (depth(at[A]) > 0 || !others_inside);
+      bool own = at[A] >= 0 && at[A] < bs + 2 * g && depth(at[A]) <= depth(i[A]) &&
+                 (depth(at[A]) > 0 || !others_inside);
       if (own) {
         resolver.leaf_containing(level, point);
         own = resolver.last_level < level;
