@@ -8,6 +8,7 @@
 #include <string>
 #include <optional>
 #include <unordered_map>
+#include <type_traits>
 #include <unordered_set>
 
 #include "wavelet/BlockPrediction.hpp"
@@ -24,6 +25,22 @@ struct Term {
   std::int64_t point;  // interior flat index of the leaf
   double weight;
 };
+
+/// How far array coordinate x of a block (bs interior points, g ghost layers) lies outside its
+/// interior along an axis: 0 inside, k in the k-th ghost layer.
+constexpr int ghost_depth(int x, int bs, int g) { return x < g ? g - x : x >= g + bs ? x - g - bs + 1 : 0; }
+
+/// Calls f(std::integral_constant<int, k>, fields) on the field arrays in groups of k: the
+/// fluid's 4 (2D) or 5 (3D) conserved fields together, other counts one by one.
+template <class F>
+void for_field_groups(std::vector<std::vector<double>>& data, F&& f) {
+  switch (data.size()) {
+    case 4: f(std::integral_constant<int, 4>{}, data.data()); break;
+    case 5: f(std::integral_constant<int, 5>{}, data.data()); break;
+    default:
+      for (auto& field : data) f(std::integral_constant<int, 1>{}, &field);
+  }
+}
 
 }  // namespace
 
@@ -69,6 +86,11 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   std::vector<std::int32_t> block_dependencies;
   std::vector<std::int32_t> local_src_slot;  // kScratchSlot for a scratch point
   static constexpr std::int32_t kScratchSlot = -1;
+  /// Whether row k copies one value: one local term of weight 1, nothing remote.
+  bool is_copy(std::size_t k) const {
+    return remote_begin[k + 1] == remote_begin[k] && local_begin[k + 1] - local_begin[k] == 1 &&
+           local_w[static_cast<std::size_t>(local_begin[k])] == 1.0;
+  }
   // The rows again, sorted for filling: copies (one local term of weight 1, nothing remote:
   // same-level neighbours and injection from finer leaves, most ghosts), merged into runs of
   // consecutive points (a ghost row facing one neighbour reads one of its rows), and weighted
@@ -560,14 +582,15 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
       }
     }
   };
-  // How far array coordinate x lies outside the interior along an axis (0 inside).
-  auto depth = [&](int x) { return x < g ? g - x : x >= g + bs ? x - g - bs + 1 : 0; };
+  auto depth = [&](int x) { return ghost_depth(x, bs, g); };
   // The separable form (GhostPlan) of row `row`: ghost i (global idx) of block `slot`, predicted
   // from a coarser leaf. Returns false, adding nothing, where it has none (fewer than two odd
-  // axes). It runs along the odd axis on which the ghost lies least far out (inside the block
+  // axes). It runs along the odd axis A on which the ghost lies least far out (inside the block
   // for all but corner ghosts). Of the points it reads, the block's own ghosts are those no
-  // farther out along that axis, so no farther out at all: each is filled whenever this row is
-  // (a ghost within a stencil reach has its whole line towards the block within it).
+  // farther out along A, so no farther out at all: each is filled whenever this row is (a ghost
+  // within a stencil reach has its whole line towards the block within it). None of them is an
+  // interior point: had the ghost another axis inside the block, that axis would be odd-free or
+  // of depth 0 < depth(A); an odd one would have been chosen, so another axis is outside.
   auto add_separable_row = [&](std::size_t slot, int level, const Index& i, const std::array<GlobalIndex64, Dim>& idx,
                                const std::array<GlobalIndex64, Dim>& points_along, std::size_t row) {
     int odd_axes = 0, along = -1;
@@ -579,11 +602,6 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
     }
     if (odd_axes < 2) return false;
     const auto A = static_cast<std::size_t>(along);
-    // (Then a point of its line inside the block along A is a ghost too: the axis chosen is the
-    // one of least depth, so another is outside. Checked all the same.)
-    bool others_inside = true;
-    for (int a = 0; a < Dim; ++a)
-      if (a != along) others_inside = others_inside && depth(i[static_cast<std::size_t>(a)]) == 0;
     const GlobalIndex64 n = points_along[A];
     const LineStencil line = dd_line(config_.ghost_order, idx[A], n, config_.periodic[A]);
     for (int m = 0; m < line.size; ++m) {
@@ -596,8 +614,7 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
       while (point[A] >= n) point[A] -= n;
       // One of this block's ghosts, no farther out, holds the prediction if a coarser leaf
       // contains it too.
-      bool own = at[A] >= 0 && at[A] < bs + 2 * g && depth(at[A]) <= depth(i[A]) &&
-                 (depth(at[A]) > 0 || !others_inside);
+      bool own = at[A] >= 0 && at[A] < bs + 2 * g && depth(at[A]) <= depth(i[A]);
       if (own) {
         resolver.leaf_containing(level, point);
         own = resolver.last_level < level;
@@ -866,8 +883,7 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan) const {
     const auto i = shape.coords(static_cast<std::ptrdiff_t>(p));
     int outside = 0, deepest = 0;
     for (int a = 0; a < Dim; ++a) {
-      const int local = i[static_cast<std::size_t>(a)] - g;
-      const int depth = local < 0 ? -local : local >= bs ? local - bs + 1 : 0;
+      const int depth = ghost_depth(i[static_cast<std::size_t>(a)], bs, g);
       outside += depth > 0 ? 1 : 0;
       deepest = std::max(deepest, depth);
     }
@@ -884,10 +900,8 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan) const {
       plan.remote_rows[list].push_back(static_cast<std::int32_t>(k));
       return;
     }
-    const auto t = static_cast<std::size_t>(plan.local_begin[k]);
-    const bool copy = plan.local_begin[k + 1] - plan.local_begin[k] == 1 && plan.local_w[t] == 1.0;
-    if (copy) {
-      const std::int64_t dest = plan.dest[k], src = plan.local_src[t];
+    if (plan.is_copy(k)) {
+      const std::int64_t dest = plan.dest[k], src = plan.local_src[static_cast<std::size_t>(plan.local_begin[k])];
       auto& runs = plan.copy_runs[list];
       auto* last = runs.empty() ? nullptr : &runs.back();
       if (last && dest == last->dest + last->length && src == last->src + last->length) ++last->length;
@@ -974,13 +988,9 @@ void fill_local_terms(const Plan& plan, std::size_t list, std::vector<double>* f
 
 template <int Dim>
 void AdaptiveGrid<Dim>::fill_local_ghosts(const GhostPlan& plan, std::size_t list) {
-  // The fluid's 4 (2D) or 5 (3D) conserved fields together; other counts one by one.
-  switch (data_.size()) {
-    case 4: fill_local_terms<4>(plan, list, data_.data()); break;
-    case 5: fill_local_terms<5>(plan, list, data_.data()); break;
-    default:
-      for (auto& field : data_) fill_local_terms<1>(plan, list, &field);
-  }
+  for_field_groups(data_, [&](auto group, std::vector<double>* fields) {
+    fill_local_terms<decltype(group)::value>(plan, list, fields);
+  });
 }
 
 template <int Dim>
@@ -989,12 +999,9 @@ void AdaptiveGrid<Dim>::fill_separable_ghosts(const GhostPlan& plan, std::initia
     for (const std::size_t list : lists) {
       const auto& rows = plan.derived_rows[list][stage];
       if (rows.empty()) continue;
-      switch (data_.size()) {
-        case 4: sum_local_rows<4>(plan, rows, data_.data()); break;
-        case 5: sum_local_rows<5>(plan, rows, data_.data()); break;
-        default:
-          for (auto& field : data_) sum_local_rows<1>(plan, rows, &field);
-      }
+      for_field_groups(data_, [&](auto group, std::vector<double>* fields) {
+        sum_local_rows<decltype(group)::value>(plan, rows, fields);
+      });
     }
 }
 
@@ -1075,7 +1082,7 @@ GhostPlanStats AdaptiveGrid<Dim>::ghost_plan_stats() const {
     const int local = plan.local_begin[k + 1] - plan.local_begin[k];
     const int terms = local + plan.remote_begin[k + 1] - plan.remote_begin[k];
     stats.scratch_points += plan.dest[k] >= plan.scratch_start ? 1 : 0;
-    if (terms == 1 && local == 1 && plan.local_w[static_cast<std::size_t>(plan.local_begin[k])] == 1.0) ++stats.copies;
+    if (plan.is_copy(k)) ++stats.copies;
     else stats.weighted_terms += terms;
     stats.longest_row = std::max(stats.longest_row, terms);
   }

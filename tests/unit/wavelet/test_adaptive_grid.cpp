@@ -832,7 +832,8 @@ TEST(DetailKernels, InteriorLargestMagnitudeMatchesPlainLoop) {
 }
 
 // The one-pass extent the tagging reads (field_scales hands its ranges to the range bound)
-// against the two passes it replaces, bitwise: the range of the whole array (ghosts included,
+// against the two passes it replaces, equal values (a zero's sign aside, which EXPECT_EQ does not
+// tell apart and the tagging never reads): the range of the whole array (ghosts included,
 // NaNs passed over, a NaN first value kept, as value_range does) and the interior's largest
 // magnitude, for the sizes compiled apart and a general one.
 TEST(DetailKernels, BlockExtentIsValueRangeAndInteriorMagnitude) {
