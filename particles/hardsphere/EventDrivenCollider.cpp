@@ -1,6 +1,7 @@
 #include "particles/hardsphere/EventDrivenCollider.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -84,6 +85,9 @@ void EventDrivenCollider::sync(int i, double t) {
 
 double EventDrivenCollider::next_crossing(int i, const Vec3& x, const Vec3& v, int* face) const {
   const auto k = static_cast<std::size_t>(i);
+#if GRAINWAVE_AVX2_SCAN
+  if (avx2_ && !accelerated_) return next_crossing_avx2(pending_[k], x, v, face);
+#endif
   const Vec3& a = acceleration_;
   // Exit times through the low and high face of each axis (+inf where impossible), then the
   // earliest, the first in the order x low, x high, y low, ... on a tie. Which face comes first
@@ -132,6 +136,53 @@ double EventDrivenCollider::next_crossing(int i, const Vec3& x, const Vec3& v, i
   return best;
 }
 
+#if GRAINWAVE_AVX2_SCAN
+[[gnu::target("avx2,popcnt,bmi")]] double EventDrivenCollider::next_crossing_avx2(const Pending& p, const Vec3& x,
+                                                                               const Vec3& v, int* face) const {
+  // next_crossing()'s formula without acceleration, the axes as lanes (x, y, z, unused): the
+  // same operations, so the same times, and the same face (the first of x low, x high, y low,
+  // ... at the earliest; NaNs passed over, as `exit < best` does).
+  const __m256d zero = _mm256_setzero_pd(), sign = _mm256_set1_pd(-0.0), never = _mm256_set1_pd(kNever);
+  const __m256d position = _mm256_setr_pd(x[0], x[1], x[2], 0.0);
+  const __m256d rate = _mm256_setr_pd(v[0], v[1], v[2], 0.0);
+  const __m128i cell = _mm_setr_epi32(p.cell[0], p.cell[1], p.cell[2], 0);
+  const __m256d lo = _mm256_loadu_pd(crossing_lo_.data()), size = _mm256_loadu_pd(crossing_size_.data());
+  const __m256d low_face = _mm256_add_pd(lo, _mm256_mul_pd(_mm256_cvtepi32_pd(cell), size));
+  const __m256d high_face =
+      _mm256_add_pd(lo, _mm256_mul_pd(_mm256_cvtepi32_pd(_mm_add_epi32(cell, _mm_set1_epi32(1))), size));
+  // gap < 0 ? 0 : rate < 0 ? -gap / rate : +inf, for the low faces (rate v) and the high (-v).
+  const __m256d gap_low = _mm256_sub_pd(position, low_face), gap_high = _mm256_sub_pd(high_face, position);
+  const __m256d rate_high = _mm256_xor_pd(rate, sign);
+  __m256d low = _mm256_blendv_pd(never, _mm256_div_pd(_mm256_xor_pd(gap_low, sign), rate),
+                                 _mm256_cmp_pd(rate, zero, _CMP_LT_OQ));
+  __m256d high = _mm256_blendv_pd(never, _mm256_div_pd(_mm256_xor_pd(gap_high, sign), rate_high),
+                                  _mm256_cmp_pd(rate_high, zero, _CMP_LT_OQ));
+  low = _mm256_andnot_pd(_mm256_cmp_pd(gap_low, zero, _CMP_LT_OQ), low);
+  high = _mm256_andnot_pd(_mm256_cmp_pd(gap_high, zero, _CMP_LT_OQ), high);
+  // Leaving through a wall face is impossible (the wall collision comes first).
+  const __m256i active = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(crossing_active_.data()));
+  const __m256i periodic = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(crossing_periodic_.data()));
+  const __m128i last = _mm_setr_epi32(cells_[0] - 1, cells_[1] - 1, cells_[2] - 1, 0);
+  const __m256i above_first = _mm256_cvtepi32_epi64(_mm_cmpgt_epi32(cell, _mm_setzero_si128()));
+  const __m256i below_last = _mm256_cvtepi32_epi64(_mm_cmpgt_epi32(last, cell));
+  low = _mm256_blendv_pd(never, low, _mm256_castsi256_pd(_mm256_and_si256(active, _mm256_or_si256(above_first, periodic))));
+  high = _mm256_blendv_pd(never, high, _mm256_castsi256_pd(_mm256_and_si256(active, _mm256_or_si256(below_last, periodic))));
+  // min_pd(a, b) is a < b ? a : b: a NaN in a leaves b.
+  __m256d best = _mm256_min_pd(high, _mm256_min_pd(low, never));
+  best = _mm256_min_pd(_mm256_permute4x64_pd(best, 0x4e), best);
+  best = _mm256_min_pd(_mm256_permute_pd(best, 0x5), best);
+  const double earliest = _mm256_cvtsd_f64(best);
+  if (!(earliest < kNever)) return kNever;  // *face as it was
+  const __m256d at = _mm256_set1_pd(earliest);
+  const auto lows = static_cast<unsigned>(_mm256_movemask_pd(_mm256_cmp_pd(low, at, _CMP_EQ_OQ)));
+  const auto highs = static_cast<unsigned>(_mm256_movemask_pd(_mm256_cmp_pd(high, at, _CMP_EQ_OQ)));
+  const unsigned in_face_order = (lows & 1u) | (highs & 1u) << 1 | (lows & 2u) << 1 | (highs & 2u) << 2 |
+                                 (lows & 4u) << 2 | (highs & 4u) << 3;
+  *face = std::countr_zero(in_face_order);
+  return earliest;
+}
+#endif
+
 void EventDrivenCollider::bin(int i, int cell) {
   const int block = cell * block_;
   const int occupied = ++blocks_[static_cast<std::size_t>(block)];
@@ -172,53 +223,117 @@ void EventDrivenCollider::grow_cells() {
   columns_.resize(candidates_.size());
 }
 
-[[gnu::always_inline]] inline int EventDrivenCollider::adjacent_cells(
-    const std::array<int, 3>& c, std::array<int, 27>& out) const {
-  if (arithmetic_interior_ && c[0] >= 1 && c[0] <= cells_[0] - 2 && c[1] >= 1 &&
-      c[1] <= cells_[1] - 2 && (dimension_ == 2 || (c[2] >= 1 && c[2] <= cells_[2] - 2))) {
-    const int cell = cell_index(c);
-    for (std::size_t k = 0; k < 27; ++k) out[k] = cell + interior_offset_[k];
-    return stencil_size_;
-  }
-  // All 27 entries, a fixed count the compiler unrolls; in 2D the last 18 offsets are zeros.
-  const int* padded = padded_cell_.data() + padded_index(c);
-  for (std::size_t k = 0; k < 27; ++k) out[k] = padded[stencil_offset_[k]];
-  return stencil_size_;
-}
-
 int EventDrivenCollider::padded_index(const std::array<int, 3>& c) const {
   return ((c[2] + pad_[2]) * padded_cells_[1] + c[1] + pad_[1]) * padded_cells_[0] + c[0] + pad_[0];
 }
 
+bool EventDrivenCollider::needs_image(const std::array<int, 3>& c) const {
+  if (imaging_interior_) return true;
+  for (std::size_t ax = 0; ax < 3; ++ax)
+    if (periodic_[ax] && (c[ax] == 0 || c[ax] == cells_[ax] - 1)) return true;
+  return false;
+}
+
+int EventDrivenCollider::gather_adjacent(const std::array<int, 3>& c, int layer) {
+  // Interior cells of a large grid find their neighbours by index arithmetic, the others in the
+  // padded grid (whose border names the wrapped cell, or the empty one beyond a wall).
+  const bool interior = arithmetic_interior_ && c[0] >= 1 && c[0] <= cells_[0] - 2 && c[1] >= 1 &&
+                        c[1] <= cells_[1] - 2 && (dimension_ == 2 || (c[2] >= 1 && c[2] <= cells_[2] - 2));
+  const auto which = static_cast<std::size_t>(layer < 0 ? kWholeStencil : layer);
+  const int* offsets = interior ? interior_offset_[which].data() : padded_offset_[which].data();
+  const int base = interior ? cell_index(c) : padded_index(c);
+  const int count = layer < 0 ? stencil_size_ : layer_size_;
+#if GRAINWAVE_AVX2_SCAN
+  if (avx2_) return gather_avx2(base, offsets, count, !interior);
+#endif
+  std::array<int, 27> cells{};
+  for (std::size_t k = 0; k < static_cast<std::size_t>(count); ++k)
+    cells[k] = interior ? base + offsets[k] : padded_cell_[static_cast<std::size_t>(base + offsets[k])];
+  return gather(cells.data(), count);
+}
+
 int EventDrivenCollider::gather(const int* cells, int count) {
   // Most cells hold at most one particle, which their head word names: it is written out and
-  // the write position advanced by one if the cell is occupied, without a branch. Only a cell
-  // holding several (about one in eleven in the hard-sphere gas) reads its block: the first
-  // chunk after the occupancy copied whole, the rest only for the rare cell fuller than one
-  // chunk. candidates_ holds 27 blocks, and blocks_ one spare chunk, so every copy fits.
+  // the write position advanced by one if the cell is occupied, without a branch. The cells
+  // holding several (about one in eleven in the hard-sphere gas) are marked, and their blocks
+  // appended after.
   const int* heads = head_.data();
-  const int* blocks = blocks_.data();
   int* out = candidates_.data();
-  const int stride = block_;
   int gathered = 0;
+  std::uint32_t several = 0;
   for (int k = 0; k < count; ++k) {
     const int head = heads[cells[k]];
     out[gathered] = head;
-    if (head < kEmptyHead) [[unlikely]] {
-      const int* block = blocks + cells[k] * stride;
-      const int occupied = kEmptyHead - head;
-      std::memcpy(out + gathered, block + 1, kSlotChunk * sizeof(int));
-      if (occupied > kSlotChunk) {
-        std::memcpy(out + gathered + kSlotChunk, block + 1 + kSlotChunk,
-                    static_cast<std::size_t>(occupied - kSlotChunk) * sizeof(int));
-      }
-      gathered += occupied;
-    } else {
-      gathered += head >= 0 ? 1 : 0;
+    gathered += head >= 0 ? 1 : 0;
+    several |= static_cast<std::uint32_t>(head < kEmptyHead) << k;
+  }
+  return append_blocks(cells, several, gathered);
+}
+
+int EventDrivenCollider::append_blocks(const int* cells, std::uint32_t several, int gathered) {
+  // The first chunk after the occupancy is copied whole, the rest only for the rare cell fuller
+  // than one chunk. candidates_ holds 27 blocks, and blocks_ one spare chunk, so every copy fits.
+  int* out = candidates_.data();
+  for (; several != 0; several &= several - 1) {
+    const int* block = blocks_.data() + cells[std::countr_zero(several)] * block_;
+    const int occupied = block[0];
+    std::memcpy(out + gathered, block + 1, kSlotChunk * sizeof(int));
+    if (occupied > kSlotChunk) {
+      std::memcpy(out + gathered + kSlotChunk, block + 1 + kSlotChunk,
+                  static_cast<std::size_t>(occupied - kSlotChunk) * sizeof(int));
     }
+    gathered += occupied;
   }
   return gathered;
 }
+
+#if GRAINWAVE_AVX2_SCAN
+namespace {
+
+/// For each 8-bit mask, the positions of its set bits packed to the front, a byte each.
+constexpr std::array<std::uint64_t, 256> kPackedLanes = [] {
+  std::array<std::uint64_t, 256> table{};
+  for (std::size_t mask = 0; mask < table.size(); ++mask) {
+    int packed = 0;
+    for (std::uint64_t lane = 0; lane < 8; ++lane)
+      if ((mask >> lane) & 1u) table[mask] |= lane << (8 * packed++);
+  }
+  return table;
+}();
+
+}  // namespace
+
+[[gnu::target("avx2,popcnt,bmi")]] int EventDrivenCollider::gather_avx2(int base, const int* offsets,
+                                                                        int count, bool padded) {
+  // gather()'s work eight cells at a time: their indices from the offsets (and the padded grid),
+  // their head words by one vector gather, the occupied ones packed to the front by a
+  // permutation from a table and written at once. Lanes past `count` read nothing.
+  alignas(32) std::array<int, 32> cells{};
+  const __m256i lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  const __m256i empty = _mm256_set1_epi32(kEmptyHead);
+  int* out = candidates_.data();
+  int gathered = 0;
+  std::uint32_t several = 0;
+  for (int k = 0; k < count; k += 8) {
+    const __m256i valid = _mm256_cmpgt_epi32(_mm256_set1_epi32(count - k), lanes);
+    __m256i cell = _mm256_add_epi32(_mm256_set1_epi32(base),
+                                    _mm256_loadu_si256(reinterpret_cast<const __m256i*>(offsets + k)));
+    if (padded) cell = _mm256_mask_i32gather_epi32(empty, padded_cell_.data(), cell, valid, 4);
+    _mm256_store_si256(reinterpret_cast<__m256i*>(cells.data() + k), cell);
+    const __m256i head = _mm256_mask_i32gather_epi32(empty, head_.data(), cell, valid, 4);
+    const auto single = static_cast<unsigned>(
+        _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpgt_epi32(head, _mm256_set1_epi32(-1)))));
+    const auto full = static_cast<unsigned>(
+        _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpgt_epi32(empty, head))));
+    const __m256i order = _mm256_cvtepu8_epi32(
+        _mm_cvtsi64_si128(static_cast<long long>(kPackedLanes[single])));
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(out + gathered), _mm256_permutevar8x32_epi32(head, order));
+    gathered += std::popcount(single);
+    several |= full << k;
+  }
+  return append_blocks(cells.data(), several, gathered);
+}
+#endif
 
 void EventDrivenCollider::contact_times(CandidateColumns& columns, int count, const ScanFrame& f) {
   const double* __restrict const px = columns.x.data();
@@ -281,6 +396,7 @@ namespace {
 
 }  // namespace
 
+template <bool kAccelerated, bool kImaged>
 [[gnu::target("avx2")]] double EventDrivenCollider::contact_times_avx2(const Flight* flight,
                                                                        const int* candidates,
                                                                        int count, int self,
@@ -317,12 +433,18 @@ namespace {
     const __m256d tau = _mm256_sub_pd(now, p[3]);
     __m256d d[3], u[3];
     for (int m = 0; m < 3; ++m) {
-      const __m256d d0 = _mm256_add_pd(
-          _mm256_sub_pd(_mm256_add_pd(p[m], _mm256_mul_pd(w[m], tau)), x[m]),
-          _mm256_mul_pd(_mm256_mul_pd(half_a[m], tau), tau));
-      u[m] = _mm256_add_pd(_mm256_sub_pd(w[m], v[m]), _mm256_mul_pd(a[m], tau));
-      d[m] = _mm256_sub_pd(d0, _mm256_and_pd(_mm256_cmp_pd(d0, half[m], _CMP_GT_OQ), length[m]));
-      d[m] = _mm256_add_pd(d[m], _mm256_and_pd(_mm256_cmp_pd(d[m], minus_half[m], _CMP_LT_OQ), length[m]));
+      // Without acceleration the terms left out are zeros, and x + 0 is x (but for -0 + 0, whose
+      // sign no later result shows); without the image the masked lengths are zeros.
+      d[m] = _mm256_sub_pd(_mm256_add_pd(p[m], _mm256_mul_pd(w[m], tau)), x[m]);
+      u[m] = _mm256_sub_pd(w[m], v[m]);
+      if constexpr (kAccelerated) {
+        d[m] = _mm256_add_pd(d[m], _mm256_mul_pd(_mm256_mul_pd(half_a[m], tau), tau));
+        u[m] = _mm256_add_pd(u[m], _mm256_mul_pd(a[m], tau));
+      }
+      if constexpr (kImaged) {
+        d[m] = _mm256_sub_pd(d[m], _mm256_and_pd(_mm256_cmp_pd(d[m], half[m], _CMP_GT_OQ), length[m]));
+        d[m] = _mm256_add_pd(d[m], _mm256_and_pd(_mm256_cmp_pd(d[m], minus_half[m], _CMP_LT_OQ), length[m]));
+      }
     }
     const __m256d sigma = _mm256_add_pd(r, w[3]);
     const __m256d b = _mm256_add_pd(
@@ -352,7 +474,7 @@ namespace {
 }
 #endif
 
-void EventDrivenCollider::scan(int i, int count, const Vec3& x, const Vec3& v, Pending& p) {
+void EventDrivenCollider::scan(int i, int count, const Vec3& x, const Vec3& v, bool imaged, Pending& p) {
   // Contact times of all candidates in one pass without data-dependent branches, then the
   // earliest. A count that is a multiple of the vector width keeps every candidate in the
   // vectorised loop (none is left to a scalar remainder); the padding is i itself, never a
@@ -377,7 +499,9 @@ void EventDrivenCollider::scan(int i, int count, const Vec3& x, const Vec3& v, P
   double earliest = kNever;
 #if GRAINWAVE_AVX2_SCAN
   if (avx2_) {
-    earliest = contact_times_avx2(flight, candidates, count, i, frame, times);
+    const auto kernel = accelerated_ ? (imaged ? &contact_times_avx2<true, true> : &contact_times_avx2<true, false>)
+                                     : (imaged ? &contact_times_avx2<false, true> : &contact_times_avx2<false, false>);
+    earliest = kernel(flight, candidates, count, i, frame, times);
   } else
 #endif
   {
@@ -452,21 +576,9 @@ void EventDrivenCollider::predict(int i, int layer) {
       }
     }
   }
-  std::array<int, 27> stencil{};
-  adjacent_cells(c, stencil);
-  if (layer < 0) {
-    scan(i, gather(stencil.data(), stencil_size_), x, v, p);
-    --pair_checks_;  // i itself was among the candidates
-  } else {
-    // Only the layer ahead of the crossed face is new; the rest was scanned before.
-    std::array<int, 9> layer_cells{};
-    const auto& offsets = layer_offsets_[static_cast<std::size_t>(layer)];
-    for (int m = 0; m < layer_size_; ++m) {
-      layer_cells[static_cast<std::size_t>(m)] =
-          stencil[static_cast<std::size_t>(offsets[static_cast<std::size_t>(m)])];
-    }
-    scan(i, gather(layer_cells.data(), layer_size_), x, v, p);
-  }
+  // After a crossing only the layer ahead of the crossed face is new; the rest was scanned before.
+  scan(i, gather_adjacent(c, layer), x, v, needs_image(c), p);
+  if (layer < 0) --pair_checks_;  // i itself was among the candidates
   if (fixed && p.partner >= 0 && pending_[static_cast<std::size_t>(p.partner)].fixed) {
     p.collision_time = kNever;  // two immovable particles never collide (fixed ones are at rest)
     p.partner = kNoPartner;
@@ -537,20 +649,29 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
     pad_[ax] = static_cast<int>(ax) < dimension_ ? 1 : 0;
     padded_cells_[ax] = cells_[ax] + 2 * pad_[ax];
   }
-  std::array<int, 6> layer_fill{};
-  for (int dz = -reach_z, position = 0; dz <= reach_z; ++dz)
+  std::array<std::size_t, 7> filled{};
+  padded_offset_ = {};
+  interior_offset_ = {};
+  for (int dz = -reach_z; dz <= reach_z; ++dz)
     for (int dy = -1; dy <= 1; ++dy)
-      for (int dx = -1; dx <= 1; ++dx, ++position) {
-        stencil_offset_[static_cast<std::size_t>(position)] =
-            (dz * padded_cells_[1] + dy) * padded_cells_[0] + dx;
-        interior_offset_[static_cast<std::size_t>(position)] =
-            (dz * cells_[1] + dy) * cells_[0] + dx;
+      for (int dx = -1; dx <= 1; ++dx) {
         const std::array<int, 3> offset{dx, dy, dz};
-        for (std::size_t face = 0; face < 6; ++face) {
-          if (offset[face / 2] != (face % 2 == 0 ? -1 : 1)) continue;
-          layer_offsets_[face][static_cast<std::size_t>(layer_fill[face]++)] = position;
+        for (std::size_t list = 0; list < 7; ++list) {
+          if (list != kWholeStencil && offset[list / 2] != (list % 2 == 0 ? -1 : 1)) continue;
+          padded_offset_[list][filled[list]] = (dz * padded_cells_[1] + dy) * padded_cells_[0] + dx;
+          interior_offset_[list][filled[list]++] = (dz * cells_[1] + dy) * cells_[0] + dx;
         }
       }
+  // next_crossing_avx2()'s constants, and whether interior cells need the minimum image.
+  imaging_interior_ = false;
+  for (std::size_t ax = 0; ax < 4; ++ax) {
+    const bool active = static_cast<int>(ax) < dimension_;
+    crossing_lo_[ax] = ax < 3 ? lo_[static_cast<int>(ax)] : 0.0;
+    crossing_size_[ax] = ax < 3 ? cell_size_[ax] : 1.0;
+    crossing_active_[ax] = active ? -1 : 0;
+    crossing_periodic_[ax] = active && periodic_[ax] ? -1 : 0;
+    if (active && periodic_[ax] && cells_[ax] < 5) imaging_interior_ = true;
+  }
   padded_cell_.resize(
       static_cast<std::size_t>(padded_cells_[0] * padded_cells_[1] * padded_cells_[2]));
   // A padded grid larger than a core's share of cache costs a miss per lookup; interior cells

@@ -166,11 +166,24 @@ class EventDrivenCollider {
   /// Rescans all adjacent cells and walls (layer < 0), or after a crossing only the cells that
   /// became adjacent (layer = crossed face), keeping the earlier of old and new candidates.
   void predict(int i, int layer);
-  /// Copies the particles of `cells` into candidates_ and returns how many there are.
+  /// Copies the particles of the cells adjacent to cell c (all of them for layer < 0, else only
+  /// those one step across face `layer`) into candidates_ and returns how many there are: first
+  /// those of the cells holding one particle, in stencil order, then those of the cells holding
+  /// several, in stencil order and each cell's block order (a fixed order: ties in contact time
+  /// go to the first candidate).
+  int gather_adjacent(const std::array<int, 3>& c, int layer);
+  /// gather_adjacent()'s work on a list of `count` cells.
   int gather(const int* cells, int count);
+  /// Appends the blocks of the cells k of `cells` whose bit k of `several` is set (cells holding
+  /// several particles) to the `gathered` candidates; returns the new count.
+  int append_blocks(const int* cells, std::uint32_t several, int gathered);
   /// Updates p with the earliest contact of i (at x, moving with v) with the first `count`
-  /// candidates.
-  void scan(int i, int count, const Vec3& x, const Vec3& v, Pending& p);
+  /// candidates; `imaged`: whether a candidate may need a periodic image (needs_image()).
+  void scan(int i, int count, const Vec3& x, const Vec3& v, bool imaged, Pending& p);
+  /// Whether the minimum image can change the separation of a particle in cell c from one in an
+  /// adjacent cell: not when c is not at a periodic face and the box spans at least 5 cells
+  /// along every periodic axis (separations then stay under 2 cells, the half box 2.5 or more).
+  bool needs_image(const std::array<int, 3>& c) const;
   /// Scratch of scan(): the candidates' flight states as columns, and their contact times.
   struct CandidateColumns {
     std::vector<double> x, y, z, vx, vy, vz, clock, radius, time;
@@ -186,16 +199,23 @@ class EventDrivenCollider {
   /// columns.time[k] = absolute contact time with candidate k, or +inf if they never touch.
   static void contact_times(CandidateColumns& columns, int count, const ScanFrame& frame);
   /// The same times for a count that is a multiple of 4, read from the candidates' Flight lines,
-  /// written to times, +inf for `self`; returns the earliest.
+  /// written to times, +inf for `self`; returns the earliest. Compiled without the acceleration's
+  /// terms (kAccelerated false: they add zeros) and without the minimum image (kImaged false:
+  /// it adds zeros where needs_image() is false) where a scan allows, the times bitwise the same.
+  template <bool kAccelerated, bool kImaged>
   static double contact_times_avx2(const Flight* flight, const int* candidates, int count,
                                    int self, const ScanFrame& frame, double* times);
+  /// gather_adjacent() in AVX2 registers: the cells are `base` plus `offsets` (in the grid, or
+  /// in the padded grid when `padded`), their head words gathered eight at a time and the
+  /// occupied ones packed to the front.
+  int gather_avx2(int base, const int* offsets, int count, bool padded);
+  /// next_crossing() without acceleration, the three axes in one vector.
+  double next_crossing_avx2(const Pending& p, const Vec3& x, const Vec3& v, int* face) const;
   /// Puts particle i into `cell` (its block must have room: grow_cells() first) or takes it out.
   void bin(int i, int cell);
   void unbin(int i);
   /// Doubles every cell's block, keeping each cell's order.
   void grow_cells();
-  /// Writes the stencil_size_ cells adjacent to cell c (itself included) in stencil order.
-  int adjacent_cells(const std::array<int, 3>& c, std::array<int, 27>& out) const;
   int padded_index(const std::array<int, 3>& c) const;
   int cell_index(const std::array<int, 3>& c) const;
   /// Time from now until particle i leaves its cell, and across which face; +inf if never.
@@ -236,12 +256,21 @@ class EventDrivenCollider {
   std::array<int, 3> pad_{};                 ///< layers of border cells (1 on the active axes)
   std::array<int, 3> padded_cells_{};
   HugePageVector<int> padded_cell_;             ///< padded grid -> cell (wrapped, or the empty one)
-  std::array<int, 27> stencil_offset_{};     ///< the adjacent cells' offsets in the padded grid
-  std::array<int, 27> interior_offset_{};    ///< and in the grid itself, from an interior cell
+  /// Offsets of the adjacent cells (index 6, stencil_size_ of them, in stencil order) and of each
+  /// face's layer (index = face, layer_size_: those one step across it), from a cell in the
+  /// padded grid (padded_offset_) or, for an interior cell, in the grid itself (interior_offset_);
+  /// 32 entries, zeros past the count, so that gather_avx2() reads whole vectors.
+  static constexpr int kWholeStencil = 6;
+  std::array<std::array<int, 32>, 7> padded_offset_{};
+  std::array<std::array<int, 32>, 7> interior_offset_{};
   bool arithmetic_interior_ = false;         ///< whether interior cells use interior_offset_
   int empty_cell_ = 0;                       ///< stands in for cells beyond walls (n_cells)
   int layer_size_ = 9;                       ///< cells one step across a face
-  std::array<std::array<int, 9>, 6> layer_offsets_{};  ///< their positions in a stencil, per face
+  bool imaging_interior_ = true;  ///< whether interior cells need the minimum image (needs_image)
+  /// next_crossing_avx2()'s constants per axis (x, y, z, unused): the box's low corner, the cell
+  /// size, and which faces a particle may cross (active axis, periodic or not at the box's face).
+  std::array<double, 4> crossing_lo_{}, crossing_size_{};
+  std::array<std::int64_t, 4> crossing_active_{}, crossing_periodic_{};
   EventCalendar calendar_;  ///< the particles by key()
   long predictions_ = 0, pair_checks_ = 0;
 };
