@@ -308,7 +308,7 @@ constexpr std::array<std::uint64_t, 256> kPackedLanes = [] {
   // gather()'s work eight cells at a time: their indices from the offsets (and the padded grid),
   // their head words by one vector gather, the occupied ones packed to the front by a
   // permutation from a table and written at once. Lanes past `count` read nothing.
-  alignas(32) std::array<int, 32> cells{};
+  alignas(32) std::array<int, 32> cells;  // only the first count are written and read
   const __m256i lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
   const __m256i empty = _mm256_set1_epi32(kEmptyHead);
   int* out = candidates_.data();
@@ -421,7 +421,12 @@ template <bool kAccelerated, bool kImaged>
   }
   // All candidates' lines are requested before the arithmetic, whose long division and square
   // root chains would otherwise hold back the later groups' loads (cache misses for large N).
-  for (int k = 0; k < count; ++k) __builtin_prefetch(flight + candidates[k]);
+  for (int k = 0; k < count; k += 4) {  // count is a multiple of 4: no loop test per line
+    __builtin_prefetch(flight + candidates[k]);
+    __builtin_prefetch(flight + candidates[k + 1]);
+    __builtin_prefetch(flight + candidates[k + 2]);
+    __builtin_prefetch(flight + candidates[k + 3]);
+  }
   const __m128i self4 = _mm_set1_epi32(self);
   __m256d earliest = never;
   for (int k = 0; k < count; k += 4) {
@@ -483,14 +488,11 @@ void EventDrivenCollider::scan(int i, int count, const Vec3& x, const Vec3& v, b
   const Flight* flight = flight_.data();
   int* const candidates = candidates_.data();
   while (count % kScanLanes != 0) candidates[count++] = i;
-  ScanFrame frame{};
+  // The box's part of the frame was set by initialize().
+  ScanFrame& frame = scan_frame_;
   for (std::size_t axis = 0; axis < 3; ++axis) {
-    const auto k = static_cast<int>(axis);
-    frame.position[axis] = x[k];
-    frame.velocity[axis] = v[k];
-    frame.acceleration[axis] = acceleration_[k];
-    frame.length[axis] = length_[k];
-    frame.half_image[axis] = half_image_[axis];
+    frame.position[axis] = x[static_cast<int>(axis)];
+    frame.velocity[axis] = v[static_cast<int>(axis)];
   }
   frame.now = now_;
   frame.radius = flight[i].radius;
@@ -634,6 +636,11 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
                                   " must span at least three diameters");
     }
     cell_size_[ax] = length_[k] / cells_[ax];
+  }
+  for (std::size_t ax = 0; ax < 3; ++ax) {
+    scan_frame_.acceleration[ax] = acceleration_[static_cast<int>(ax)];
+    scan_frame_.length[ax] = length_[static_cast<int>(ax)];
+    scan_frame_.half_image[ax] = half_image_[ax];
   }
   const auto n_cells = static_cast<std::size_t>(cells_[0] * cells_[1] * cells_[2]);
   // Adjacent cells (itself included) at fixed positions: dz, dy, dx from -1 to 1, dz only 0 in

@@ -252,6 +252,7 @@ class EventDrivenCollider {
   HugePageVector<int> head_;
   std::vector<int> candidates_;              ///< scratch of gather(): 27 whole blocks and padding
   CandidateColumns columns_;                 ///< scratch of scan()
+  ScanFrame scan_frame_{};                   ///< scan()'s, the box's part set by initialize()
   int stencil_size_ = 27;                    ///< adjacent cells of a cell, itself included
   std::array<int, 3> pad_{};                 ///< layers of border cells (1 on the active axes)
   std::array<int, 3> padded_cells_{};
