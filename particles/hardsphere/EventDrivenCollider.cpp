@@ -757,11 +757,16 @@ EventStats EventDrivenCollider::advance_to(ParticleStore& store, const Domain& d
       const int axis = face / 2;
       const auto ax = static_cast<std::size_t>(axis);
       const int step = face % 2 == 0 ? -1 : 1;
-      sync(i, now_);
-      unbin(i);
       int c = p.cell[ax] + step;
       if (c < 0) c += cells_[ax];
       if (c >= cells_[ax]) c -= cells_[ax];
+      // The old and the new cell's blocks: two cache misses for large N, started together.
+      std::array<int, 3> entered = p.cell;
+      entered[ax] = c;
+      __builtin_prefetch(&blocks_[static_cast<std::size_t>(cell_index(entered) * block_)]);
+      __builtin_prefetch(&blocks_[static_cast<std::size_t>(slot_of_[a])]);
+      sync(i, now_);
+      unbin(i);
       p.cell[ax] = c;
       // Snap onto the shared face (wrapped) so the new cell's exit test starts exactly at 0.
       flight_[a].position[axis] = lo_[axis] + (step > 0 ? c : c + 1) * cell_size_[ax];
@@ -781,6 +786,13 @@ EventStats EventDrivenCollider::advance_to(ParticleStore& store, const Domain& d
       ++stats.stale_events;
       predict_and_schedule(i, -1);
       continue;
+    }
+    // What the collision reads besides i's Flight and Pending lines, all requested at once.
+    __builtin_prefetch(&spin_[a]);
+    if (pair) {
+      __builtin_prefetch(&flight_[b]);
+      __builtin_prefetch(&pending_[b]);
+      __builtin_prefetch(&spin_[b]);
     }
     sync(i, now_);
     Body body_a;
