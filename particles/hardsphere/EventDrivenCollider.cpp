@@ -221,6 +221,7 @@ void EventDrivenCollider::grow_cells() {
   block_ *= 2;
   candidates_.assign(27 * static_cast<std::size_t>(block_) + kScanLanes, -1);
   columns_.resize(candidates_.size());
+  candidate_lines_.resize(candidates_.size());
 }
 
 int EventDrivenCollider::padded_index(const std::array<int, 3>& c) const {
@@ -401,6 +402,7 @@ template <bool kAccelerated, bool kImaged>
                                                                        const int* candidates,
                                                                        int count, int self,
                                                                        const ScanFrame& f,
+                                                                       std::uintptr_t* lines,
                                                                        double* times) {
   // contact_times() on four candidates at a time, read straight from their Flight lines: each
   // line is two rows of four doubles (x y z clock, vx vy vz radius), and a 4 x 4 transposition
@@ -421,17 +423,21 @@ template <bool kAccelerated, bool kImaged>
   }
   // All candidates' lines are requested before the arithmetic, whose long division and square
   // root chains would otherwise hold back the later groups' loads (cache misses for large N).
-  for (int k = 0; k < count; k += 4) {  // count is a multiple of 4: no loop test per line
-    __builtin_prefetch(flight + candidates[k]);
-    __builtin_prefetch(flight + candidates[k + 1]);
-    __builtin_prefetch(flight + candidates[k + 2]);
-    __builtin_prefetch(flight + candidates[k + 3]);
+  // Their addresses are computed four at a time (index * 64 + base, in 64-bit lanes) and kept
+  // in `lines` for the loop below.
+  static_assert(sizeof(Flight) == 64);
+  const __m256i base = _mm256_set1_epi64x(static_cast<long long>(reinterpret_cast<std::uintptr_t>(flight)));
+  for (int k = 0; k < count; k += 4) {
+    const __m128i index = _mm_loadu_si128(reinterpret_cast<const __m128i*>(candidates + k));
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(lines + k),
+                       _mm256_add_epi64(base, _mm256_slli_epi64(_mm256_cvtepi32_epi64(index), 6)));
+    for (int m = 0; m < 4; ++m) __builtin_prefetch(reinterpret_cast<const void*>(lines[k + m]));
   }
   const __m128i self4 = _mm_set1_epi32(self);
   __m256d earliest = never;
   for (int k = 0; k < count; k += 4) {
     const double* line[4];
-    for (int m = 0; m < 4; ++m) line[m] = flight[candidates[k + m]].position.data();
+    for (int m = 0; m < 4; ++m) line[m] = reinterpret_cast<const double*>(lines[k + m]);
     __m256d p[4], w[4];  // x y z clock; vx vy vz radius
     load_columns(line, 0, p);
     load_columns(line, 4, w);
@@ -487,7 +493,8 @@ void EventDrivenCollider::scan(int i, int count, const Vec3& x, const Vec3& v, b
   pair_checks_ += count;
   const Flight* flight = flight_.data();
   int* const candidates = candidates_.data();
-  while (count % kScanLanes != 0) candidates[count++] = i;
+  for (int k = 0; k < kScanLanes - 1; ++k) candidates[count + k] = i;
+  count = (count + kScanLanes - 1) / kScanLanes * kScanLanes;
   // The box's part of the frame was set by initialize().
   ScanFrame& frame = scan_frame_;
   for (std::size_t axis = 0; axis < 3; ++axis) {
@@ -503,7 +510,7 @@ void EventDrivenCollider::scan(int i, int count, const Vec3& x, const Vec3& v, b
   if (avx2_) {
     const auto kernel = accelerated_ ? (imaged ? &contact_times_avx2<true, true> : &contact_times_avx2<true, false>)
                                      : (imaged ? &contact_times_avx2<false, true> : &contact_times_avx2<false, false>);
-    earliest = kernel(flight, candidates, count, i, frame, times);
+    earliest = kernel(flight, candidates, count, i, frame, candidate_lines_.data(), times);
   } else
 #endif
   {
@@ -560,7 +567,7 @@ void EventDrivenCollider::predict(int i, int layer) {
     p.collision_time = kNever;
     p.partner = kNoPartner;
   }
-  if (!fixed) {
+  if (!fixed && any_wall_) {
     for (int axis = 0; axis < dimension_; ++axis) {
       const auto ax = static_cast<std::size_t>(axis);
       for (int side = 0; side < 2; ++side) {
@@ -671,6 +678,8 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
       }
   // next_crossing_avx2()'s constants, and whether interior cells need the minimum image.
   imaging_interior_ = false;
+  any_wall_ = false;
+  for (const auto& sides : wall_) any_wall_ = any_wall_ || sides[0] || sides[1];
   for (std::size_t ax = 0; ax < 4; ++ax) {
     const bool active = static_cast<int>(ax) < dimension_;
     crossing_lo_[ax] = ax < 3 ? lo_[static_cast<int>(ax)] : 0.0;
@@ -727,6 +736,7 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
   head_.assign(n_cells + 1, kEmptyHead);
   candidates_.assign(27 * static_cast<std::size_t>(block_) + kScanLanes, -1);
   columns_.resize(candidates_.size());
+  candidate_lines_.resize(candidates_.size());
   for (std::size_t i = 0; i < n; ++i) bin(static_cast<int>(i), cell_index(pending_[i].cell));
   for (std::size_t i = 0; i < n; ++i) predict(static_cast<int>(i), -1);
   std::vector<double> keys(n);

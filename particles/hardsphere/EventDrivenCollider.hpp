@@ -203,8 +203,10 @@ class EventDrivenCollider {
   /// terms (kAccelerated false: they add zeros) and without the minimum image (kImaged false:
   /// it adds zeros where needs_image() is false) where a scan allows, the times bitwise the same.
   template <bool kAccelerated, bool kImaged>
+  /// `lines`: scratch for the candidates' line addresses, as long as candidates_.
   static double contact_times_avx2(const Flight* flight, const int* candidates, int count,
-                                   int self, const ScanFrame& frame, double* times);
+                                   int self, const ScanFrame& frame, std::uintptr_t* lines,
+                                   double* times);
   /// gather_adjacent() in AVX2 registers: the cells are `base` plus `offsets` (in the grid, or
   /// in the padded grid when `padded`), their head words gathered eight at a time and the
   /// occupied ones packed to the front.
@@ -253,6 +255,9 @@ class EventDrivenCollider {
   std::vector<int> candidates_;              ///< scratch of gather(): 27 whole blocks and padding
   CandidateColumns columns_;                 ///< scratch of scan()
   ScanFrame scan_frame_{};                   ///< scan()'s, the box's part set by initialize()
+  /// contact_times_avx2()'s scratch: the candidates' Flight line addresses.
+  std::vector<std::uintptr_t> candidate_lines_;
+  bool any_wall_ = false;  ///< whether any face is a wall (predict() then looks for wall contacts)
   int stencil_size_ = 27;                    ///< adjacent cells of a cell, itself included
   std::array<int, 3> pad_{};                 ///< layers of border cells (1 on the active axes)
   std::array<int, 3> padded_cells_{};
