@@ -42,6 +42,14 @@ class EventCalendar {
   }
   /// Starts loading particle i's entry (it is about to be updated or popped).
   void prefetch(int i) const { __builtin_prefetch(&link_[static_cast<std::size_t>(i)]); }
+  /// Starts loading the entries an update() of particle i will change besides its own (its
+  /// neighbours in a bucket or the overflow list). Reads i's entry: call prefetch(i) well before.
+  void prefetch_neighbours(int i) const {
+    const Link& l = link_[static_cast<std::size_t>(i)];
+    if (l.where == kInHeap) return;
+    if (l.prev != kNone) __builtin_prefetch(&link_[static_cast<std::size_t>(l.prev)]);
+    if (l.next != kNone) __builtin_prefetch(&link_[static_cast<std::size_t>(l.next)]);
+  }
   double time(int i) const { return link_[static_cast<std::size_t>(i)].time; }
 
   std::size_t size() const { return link_.size(); }

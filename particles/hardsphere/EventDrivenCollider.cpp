@@ -803,6 +803,7 @@ EventStats EventDrivenCollider::advance_to(ParticleStore& store, const Domain& d
       __builtin_prefetch(&flight_[b]);
       __builtin_prefetch(&pending_[b]);
       __builtin_prefetch(&spin_[b]);
+      calendar_.prefetch(partner);
     }
     sync(i, now_);
     Body body_a;
@@ -859,6 +860,8 @@ EventStats EventDrivenCollider::advance_to(ParticleStore& store, const Domain& d
       ++(pair ? stats.collisions : stats.wall_hits);
       if (log_) log_->push_back(CollisionRecord{now_, store.id[a], pair ? store.id[b] : partner});
     }
+    // The partner's calendar entry has arrived by now; its list neighbours load during i's scan.
+    if (pair) calendar_.prefetch_neighbours(partner);
     predict_and_schedule(i, -1);
     if (pair) predict_and_schedule(partner, -1);
   }
