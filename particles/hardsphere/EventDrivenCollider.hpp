@@ -18,25 +18,39 @@
 //
 // Speed (the pair scan is most of the work; bench/bench_hardsphere.cpp measures it): each cell
 // owns a fixed block of ints, its occupancy followed by its particles' indices, and a head word
-// that names its particle when it holds exactly one (most occupied cells). A scan lists the
+// that names its particle when it holds exactly one (most occupied cells). A scan finds the
 // adjacent cells (from a grid padded with one layer of wrapped or empty cells, or, for interior
 // cells of large grids, by index arithmetic), gathers their particles from the head words
-// (4 bytes a cell, which mostly stay in cache) and the blocks of the few cells holding several
-// (no list chasing), and takes all contact times
-// in one pass without data-dependent branches (minimum image and "never" by selects). Where the
-// machine has AVX2 (x86-64, picked at run time) that pass reads four candidates' Flight lines and
-// transposes them in registers into columns; elsewhere it copies the flight states into columns
-// and leaves the loop to the compiler's vectoriser. Both do the arithmetic of
-// ballistic_contact_time_or_never in the same order (no FMA), and the earliest candidate is the
-// first at the minimum, as a sequential scan would pick: none of this changes a result. The next
-// cell crossing is picked by selects too. A cell that overflows its block doubles every block
-// (rare: blocks start with room above the fullest cell at binning). For large N every event's
-// reads are cache misses, so what an event touches of a particle is packed into one line each
-// (Flight, Pending, Spin), and the large arrays sit on huge pages (core/HugePageAllocator.hpp):
-// at N = 97 556 these took bench_hardsphere from 0.40 M to about 0.49 M collisions/s, and the
-// head words (which spare the scan 6 MB of blocks there) a further 15 % on a later machine
-// (medians of five alternating runs: 0.49 M -> 0.57 M).
-// Where the time goes now (callgrind at N = 97 556, a 2 MB last-level cache modelled: about
+// (4 bytes a cell, which mostly stay in cache), then appends the blocks of the few cells holding
+// several (no list chasing), and takes all contact times in one pass without data-dependent
+// branches (minimum image and "never" by selects). Where the machine has AVX2 (x86-64, picked
+// at run time) the head words are gathered eight at a time and the occupied ones packed by a
+// permutation from a table; the pass reads four candidates' Flight lines and transposes them in
+// registers into columns, compiled without the acceleration's terms when there is none and
+// without the minimum image when the scanning cell cannot see an image (both add zeros there);
+// and the unaccelerated crossing time takes the three axes as lanes. Elsewhere the flight
+// states are copied into columns and the loop left to the compiler's vectoriser. Every path does
+// the arithmetic of ballistic_contact_time_or_never in the same order (no FMA), and the earliest
+// candidate is the first at the minimum in one fixed candidate order: none of this changes a
+// result (the vector and portable paths are compared bitwise by a test). A cell that overflows
+// its block doubles every block (rare: blocks start with room above the fullest cell at
+// binning). For large N every event's reads are cache misses, so what an event touches of a
+// particle is packed into one line each (Flight, Pending, Spin), the large arrays sit on huge
+// pages (core/HugePageAllocator.hpp), and the lines an event will need are requested together
+// as soon as they are known (a collision's partner's lines and calendar entry, a crossing's two
+// cell blocks): at N = 97 556 these took bench_hardsphere from 0.40 M to about 0.49 M
+// collisions/s, and the head words (which spare the scan 6 MB of blocks there) a further 15 %
+// on a later machine (medians of five alternating runs: 0.49 M -> 0.57 M).
+// Stop 40 (gather by vector, the kernel variants, the vector crossing time, the scan's fixed
+// frame and address computation, the prefetches above): callgrind on a 1372-particle gas to
+// t = 3, 15 151 collisions, bitwise the same results: 5995 -> 4356 instructions a collision;
+// bench_hardsphere medians of five, three alternating rounds against the build before:
+// N = 1372 1.10-1.12 M -> 1.32-1.37 M collisions/s, N = 97 556 0.69-0.74 M -> 0.81-0.87 M.
+// Tried then without gain: keeping a runner-up candidate, taken without a rescan when the
+// earliest turns stale (only 26% of stale events could use it, its partner having collided too
+// in the others; 1.20-1.23 M against 1.28-1.31 M at N = 1372); prefetching both of the
+// calendar heap's runners-up instead of one (760 against 780 k/s at N = 97 556).
+// Where the time went before stop 40 (callgrind at N = 97 556, a 2 MB last-level cache modelled: about
 // 6000 instructions, 51 cache misses and 35 mispredicted branches per collision, the misses
 // mostly the candidates' Flight lines, 22, and the head words and blocks, 9): the event loop is
 // bound by latency, not arithmetic. Tried and measured without gain (five alternating runs
@@ -58,7 +72,10 @@
 // 1.06-1.08 M against 1.08-1.11 M at N = 1372, the branch costing what it saved. perf at
 // N = 97 556 puts 18% of the time in the calendar (the bucket head and the particle's own
 // link, two misses per change), 25% in the contact-time kernel, 11% in gather and 7% in unbin
-// (the cell block): the misses are spread over every structure an event touches.
+// (the cell block): the misses are spread over every structure an event touches. After stop
+// 40, perf there: contact-time kernels 22%, the event handling in advance_to 18% (mostly the
+// event's own Pending line where the calendar's hint named another particle, 44% of events, and
+// the Spin lines), the calendar 18%, gather 15%, scan 7%, unbin 6%.
 #include <array>
 #include <cstdint>
 #include <vector>
