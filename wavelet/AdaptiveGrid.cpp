@@ -1210,12 +1210,16 @@ std::vector<double> AdaptiveGrid<Dim>::field_scales(const ThresholdConfig& th,
   if (th.normalisation == Normalisation::kAbsolute) return scale;
   std::vector<double> local(F, 0.0), global(F, 0.0);
   // Max is exact: any order gives the same. The same pass gives each block's range of values
-  // for the tagging's range bound, which would otherwise read the blocks again.
-  if (ranges) ranges->resize(F * local_blocks());
+  // for the tagging's range bound, which would otherwise read the blocks again: of the blocks
+  // whose bound will be tried, since reading the ghosts too costs more than the interiors (most
+  // of a 16^2 block array is ghosts), where the bound rests (block_significance) their range is
+  // NaN.
+  const bool resting = bound_rest_.size() == local_blocks();
+  if (ranges) ranges->assign(F * local_blocks(), {std::nan(""), std::nan("")});
   for (std::size_t f = 0; f < F; ++f)
     for (std::size_t s = 0; s < local_blocks(); ++s) {
       const double* u = data_[f].data() + s * block_volume_;
-      if (!ranges) {  // the interiors only
+      if (!ranges || (resting && bound_rest_[s] != 0)) {  // the interiors only
         local[f] = std::max(local[f], interior_largest_magnitude(u, Dim, config_.block_size, layout_.ghosts));
         continue;
       }
@@ -1294,8 +1298,8 @@ std::pair<bool, bool> AdaptiveGrid<Dim>::block_significance(std::size_t slot, co
     // insignificant without computing them (most of a far field). The margin covers the
     // rounding of the computed coefficients, so no decision differs from computing them.
     if (try_bound) {
-      const auto [low, high] =
-          ranges.empty() ? block_bounds(f, slot) : ranges[static_cast<std::size_t>(f) * local_blocks() + slot];
+      const auto given = ranges.empty() ? std::pair{std::nan(""), 0.0} : ranges[static_cast<std::size_t>(f) * local_blocks() + slot];
+      const auto [low, high] = std::isnan(given.first) ? block_bounds(f, slot) : given;
       const double rounding = 1e-12 * std::max(std::abs(low), std::abs(high));
       if (block_detail_stencils(slot).bound * (high - low) * (1 + 1e-12) + rounding < std::min(threshold, threshold_any)) {
         bound_decided = true;

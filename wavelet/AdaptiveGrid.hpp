@@ -212,7 +212,8 @@ class AdaptiveGrid {
   /// Global significance scale per field (1 for absolute, max |u| of the field's group). With
   /// `ranges` (linf normalisation), the same pass also gives each local block's range of values
   /// per field (field-major: field * local_blocks() + slot), ghosts included, as block_bounds
-  /// would compute it; with absolute normalisation there is no pass and `ranges` is left empty.
+  /// would compute it, for the blocks whose range bound block_significance will try next (NaN
+  /// for the others); with absolute normalisation there is no pass and `ranges` is left empty.
   std::vector<double> field_scales(const ThresholdConfig& threshold,
                                    std::vector<std::pair<double, double>>* ranges = nullptr) const;
   /// Global number of significant coefficients (ghosts must be filled).
@@ -328,7 +329,8 @@ class AdaptiveGrid {
   /// Whether a local block holds a significant point (any field above any_fraction times its
   /// threshold: coarsen_fraction in a coarsen pass), and whether it holds one among its near
   /// points (above the threshold itself: what the refine pass refines).
-  /// `ranges`: field_scales' block ranges, or empty (then block_bounds reads the block).
+  /// `ranges`: field_scales' block ranges, or empty (then, or where a range is NaN, block_bounds
+  /// reads the block).
   std::pair<bool, bool> block_significance(std::size_t slot, const ThresholdConfig& th, std::span<const double> scale,
                                            std::span<const std::pair<double, double>> ranges,
                                            double any_fraction) const;

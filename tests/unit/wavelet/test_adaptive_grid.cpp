@@ -542,6 +542,42 @@ TEST(AdaptiveGrid, SettledCycleChangesNothing2D) {
   settled_cycle_changes_nothing<2>(unit_box<2>(true, 1, 5), 1e-3, disc_2d);
 }
 
+// field_scales reads the whole block array (ghosts too) only for the blocks whose range bound
+// the tagging will try next; where the bound rests (it decided nothing on that block lately) the
+// interiors alone give the scale and the range is left NaN. Where given, the range is the whole
+// array's; either way the scale is the interiors' largest magnitude.
+TEST(AdaptiveGrid, FieldScalesGiveRangesWhereTheBoundWillBeTried) {
+  gw::ThresholdConfig th;
+  th.epsilon = 1e-3;
+  th.groups = {0, -1};
+  gw::AdaptiveGrid<2> grid(unit_box<2>(true, 1, 5));
+  grid.adapt_to_function(th, [](const auto& x, std::span<double> v) { v[0] = disc_2d(x); v[1] = 0; });
+  for (int k = 0; k < 3; ++k) grid.adapt_cycle(th);
+  grid.fill_ghosts();
+  std::vector<std::pair<double, double>> ranges;
+  const auto scale = grid.field_scales(th, &ranges);
+  EXPECT_EQ(scale, grid.field_scales(th));
+  ASSERT_EQ(ranges.size(), 2 * grid.local_blocks());
+  std::size_t given = 0, resting = 0;
+  for (std::size_t s = 0; s < grid.local_blocks(); ++s) {
+    const auto [low, high] = ranges[s];  // field 0
+    if (std::isnan(low)) {
+      EXPECT_TRUE(std::isnan(high)) << "block " << s;
+      ++resting;
+      continue;
+    }
+    const auto u = grid.block(0, s);
+    const auto [expected_low, expected_high] = gw::value_range(u.data(), u.size());
+    EXPECT_EQ(low, expected_low) << "block " << s;
+    EXPECT_EQ(high, expected_high) << "block " << s;
+    ++given;
+  }
+  const auto all_given = global_sum(static_cast<std::int64_t>(given)), all_resting = global_sum(static_cast<std::int64_t>(resting));
+  if (root()) std::printf("ranges given for %lld blocks, left out for %lld resting ones\n", static_cast<long long>(all_given), static_cast<long long>(all_resting));
+  EXPECT_GT(all_given, 0);
+  EXPECT_GT(all_resting, 0);
+}
+
 TEST(AdaptiveGrid, ForcedRegionSitsAtFinestLevel) {
   gw::AdaptiveGrid<2> grid(unit_box<2>(false, 0, 3));
   gw::ThresholdConfig th;
