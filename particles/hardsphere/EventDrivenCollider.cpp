@@ -50,7 +50,9 @@ double first_descent(double c, double b, double a, bool outside_is_now) {
 EventDrivenCollider::EventDrivenCollider(EventDrivenSettings settings) : settings_(settings) {
   validate(settings_.law, "hardsphere");
 #if GRAINWAVE_AVX2_SCAN
-  avx2_ = settings_.vector_scan && __builtin_cpu_supports("avx2");
+  // The AVX2 paths also use POPCNT and BMI1 (every AVX2 machine has them; checked all the same).
+  avx2_ = settings_.vector_scan && __builtin_cpu_supports("avx2") && __builtin_cpu_supports("popcnt") &&
+          __builtin_cpu_supports("bmi");
 #endif
 }
 
