@@ -44,8 +44,8 @@
 // Stop 40 (gather by vector, the kernel variants, the vector crossing time, the scan's fixed
 // frame and address computation, the prefetches above): callgrind on a 1372-particle gas to
 // t = 3, 15 151 collisions, bitwise the same results: 5995 -> 4356 instructions a collision;
-// bench_hardsphere medians of five, three alternating rounds against the build before:
-// N = 1372 1.10-1.12 M -> 1.32-1.37 M collisions/s, N = 97 556 0.69-0.74 M -> 0.81-0.87 M.
+// bench_hardsphere medians of five, six alternating rounds against the build before:
+// N = 1372 1.07-1.12 M -> 1.32-1.37 M collisions/s, N = 97 556 0.67-0.77 M -> 0.81-0.87 M.
 // Tried then without gain: keeping a runner-up candidate, taken without a rescan when the
 // earliest turns stale (only 26% of stale events could use it, its partner having collided too
 // in the others; 1.20-1.23 M against 1.28-1.31 M at N = 1372); prefetching both of the
@@ -219,8 +219,8 @@ class EventDrivenCollider {
   /// written to times, +inf for `self`; returns the earliest. Compiled without the acceleration's
   /// terms (kAccelerated false: they add zeros) and without the minimum image (kImaged false:
   /// it adds zeros where needs_image() is false) where a scan allows, the times bitwise the same.
-  template <bool kAccelerated, bool kImaged>
   /// `lines`: scratch for the candidates' line addresses, as long as candidates_.
+  template <bool kAccelerated, bool kImaged>
   static double contact_times_avx2(const Flight* flight, const int* candidates, int count,
                                    int self, const ScanFrame& frame, std::uintptr_t* lines,
                                    double* times);
