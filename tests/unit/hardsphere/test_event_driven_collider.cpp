@@ -217,7 +217,7 @@ TEST(EventDrivenCollider, VectorAndPortableScansAreBitwiseEqual) {
 // Periodic gases without acceleration: the kernels without the acceleration's terms, with and
 // without images (interior cells of boxes 11 and 40 cells wide), the unaccelerated crossing
 // time, and (N = 37 044, a padded grid of 42^3 cells) the neighbours of interior cells found by
-// index arithmetic; and 2D disks.
+// index arithmetic; 2D disks; and a gas between two walls.
 TEST(EventDrivenCollider, VectorAndPortableScansAreBitwiseEqualWithoutAcceleration) {
   for (const int k : {6, 21}) {
     gp::ParticleStore start;
@@ -229,6 +229,13 @@ TEST(EventDrivenCollider, VectorAndPortableScansAreBitwiseEqualWithoutAccelerati
   gp::Domain d;
   gp::testing::disk_gas(disks, d, 20, 0.4, 1.0, 5);  // 400 disks
   expect_vector_scan_equals_portable(disks, d, hs::CollisionLaw{0.95, 0.2}, 1.0, 500);
+  // Walls across y without gravity: no crossing through a wall face, wall contacts searched.
+  gp::ParticleStore walled;
+  gp::testing::fcc_gas(walled, d, 6, 0.3, 1.0, 13);
+  d.face[1] = {gp::FaceKind::kWall, gp::FaceKind::kWall};
+  d.lo.y() -= 0.2;
+  d.hi.y() += 0.2;
+  expect_vector_scan_equals_portable(walled, d, hs::CollisionLaw{0.9, 0.3}, 1.0, 2000);
 }
 
 TEST(EventDrivenCollider, AgreesWithRetrospectiveElasticGas) {
