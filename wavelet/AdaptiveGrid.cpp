@@ -1214,12 +1214,11 @@ std::vector<double> AdaptiveGrid<Dim>::field_scales(const ThresholdConfig& th,
   // whose bound will be tried, since reading the ghosts too costs more than the interiors (most
   // of a 16^2 block array is ghosts), where the bound rests (block_significance) their range is
   // NaN.
-  const bool resting = bound_rest_.size() == local_blocks();
   if (ranges) ranges->assign(F * local_blocks(), {std::nan(""), std::nan("")});
   for (std::size_t f = 0; f < F; ++f)
     for (std::size_t s = 0; s < local_blocks(); ++s) {
       const double* u = data_[f].data() + s * block_volume_;
-      if (!ranges || (resting && bound_rest_[s] != 0)) {  // the interiors only
+      if (!ranges || !range_bound_tried(s)) {  // the interiors only
         local[f] = std::max(local[f], interior_largest_magnitude(u, Dim, config_.block_size, layout_.ghosts));
         continue;
       }
@@ -1283,7 +1282,7 @@ std::pair<bool, bool> AdaptiveGrid<Dim>::block_significance(std::size_t slot, co
   // it is not tried for the next few calls: it rarely decides sooner on such a block, and costs
   // a pass over the block's values per field.
   if (bound_rest_.size() != local_blocks()) bound_rest_.assign(local_blocks(), 0);
-  const bool try_bound = bound_rest_[slot] == 0;
+  const bool try_bound = range_bound_tried(slot);
   if (!try_bound) --bound_rest_[slot];
   // The fields are tried from the one that settled the block last time: the answer is an OR
   // over the fields, so the order changes nothing but how many are computed before it is known.
@@ -1298,8 +1297,8 @@ std::pair<bool, bool> AdaptiveGrid<Dim>::block_significance(std::size_t slot, co
     // insignificant without computing them (most of a far field). The margin covers the
     // rounding of the computed coefficients, so no decision differs from computing them.
     if (try_bound) {
-      const auto given = ranges.empty() ? std::pair{std::nan(""), 0.0} : ranges[static_cast<std::size_t>(f) * local_blocks() + slot];
-      const auto [low, high] = std::isnan(given.first) ? block_bounds(f, slot) : given;
+      const auto at = static_cast<std::size_t>(f) * local_blocks() + slot;
+      const auto [low, high] = ranges.empty() || std::isnan(ranges[at].first) ? block_bounds(f, slot) : ranges[at];
       const double rounding = 1e-12 * std::max(std::abs(low), std::abs(high));
       if (block_detail_stencils(slot).bound * (high - low) * (1 + 1e-12) + rounding < std::min(threshold, threshold_any)) {
         bound_decided = true;

@@ -351,6 +351,9 @@ class AdaptiveGrid {
   mutable std::vector<double> parent_array_;             // parent_significant: the assembled parent
   mutable std::vector<std::pair<int, std::ptrdiff_t>> parent_sources_;  // ... and where its points come from
   mutable std::vector<std::uint8_t> bound_rest_;  // block_significance: calls left without the range bound
+  /// Whether block_significance's next call on a local block tries the range bound (field_scales
+  /// then gives the block's range; not while the bound rests).
+  bool range_bound_tried(std::size_t slot) const { return bound_rest_.size() != local_blocks() || bound_rest_[slot] == 0; }
   mutable std::vector<int> first_field_;  // block_significance: the field it tries first
 };
 

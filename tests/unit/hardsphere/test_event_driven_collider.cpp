@@ -229,7 +229,8 @@ TEST(EventDrivenCollider, VectorAndPortableScansAreBitwiseEqualWithoutAccelerati
   gp::Domain d;
   gp::testing::disk_gas(disks, d, 20, 0.4, 1.0, 5);  // 400 disks
   expect_vector_scan_equals_portable(disks, d, hs::CollisionLaw{0.95, 0.2}, 1.0, 500);
-  // Walls across y without gravity: no crossing through a wall face, wall contacts searched.
+  // Walls across y without gravity: wall contacts searched, crossings next to a wall face.
+  // (The crossing masks' wall faces never decide here: a wall contact always comes first.)
   gp::ParticleStore walled;
   gp::testing::fcc_gas(walled, d, 6, 0.3, 1.0, 13);
   d.face[1] = {gp::FaceKind::kWall, gp::FaceKind::kWall};
