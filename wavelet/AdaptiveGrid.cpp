@@ -99,6 +99,7 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   struct CopyRun {
     std::int64_t dest, src;
     std::int32_t length;
+    std::int32_t src_slot;  // the local block it reads (a run reads one block's row)
   };
   // Lists 0 and 1: the two groups; list 2: the rows of the blocks whose rows were built afresh
   // by the last rebuild (both groups: the others' ghosts came through the adaptation unchanged).
@@ -107,6 +108,15 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   // Per list and stage (1, 2: index stage - 1), the rows summed from other ghost rows: filled
   // after everything else, stage by stage (their terms are all local).
   std::array<std::array<std::vector<std::int32_t>, 2>, 3> derived_rows;
+  // Per list 0 and 1 and per local block (and one past the last): where its entries begin in
+  // copy_runs, sum_rows, remote_rows, derived_rows[.][0] and [.][1]. Each block's entries are
+  // contiguous (no run spans two blocks), so a block whose rows are reused after an adaptation
+  // takes its entries from the old plan, renumbered, instead of grouping its rows again
+  // (group_ghost_rows). grouped_reach: the stencil reach they were grouped for.
+  std::array<std::array<std::vector<std::int32_t>, 5>, 2> block_group_begin;
+  std::array<int, 3> grouped_reach{-1, -1, -1};
+  // Per local block: its slot in the plan it was reused from, or -1 (built afresh).
+  std::vector<std::int32_t> reused_from;
   // Messages: point-major buffers [point][field], one contiguous range per peer rank.
   std::vector<int> recv_rank, recv_first, recv_count;
   std::vector<int> send_rank, send_first, send_count;
@@ -126,6 +136,10 @@ struct AdaptiveGrid<Dim>::GhostPlan {
       empty(copy_runs[list], sum_rows[list], remote_rows[list]);
       for (auto& stage : derived_rows[list]) stage.clear();
     }
+    for (auto& list : block_group_begin)
+      for (auto& begin : list) begin.clear();
+    reused_from.clear();
+    grouped_reach = {-1, -1, -1};
   }
 };
 
@@ -685,6 +699,7 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
             static_cast<std::int32_t>(slot_now[static_cast<std::size_t>(old.block_dependencies[static_cast<std::size_t>(d)])]));
       plan.block_has_remote.push_back(0);
       plan.block_rebuilt.push_back(0);
+      plan.reused_from.push_back(static_cast<std::int32_t>(*o));
       scratch_points += old.block_scratch_begin[*o + 1] - old.block_scratch_begin[*o];
       plan.block_scratch_begin.push_back(static_cast<std::int32_t>(scratch_points));
       plan.block_row_begin.push_back(static_cast<std::int32_t>(plan.dest.size()));
@@ -802,6 +817,7 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
                                             : -1);
     plan.block_has_remote.push_back(remote_pending.size() > remote_before ? 1 : 0);
     plan.block_rebuilt.push_back(1);
+    plan.reused_from.push_back(-1);
     plan.block_row_begin.push_back(static_cast<std::int32_t>(plan.dest.size()));
     plan.block_dependency_begin.push_back(static_cast<std::int32_t>(plan.block_dependencies.size()));
   }
@@ -861,20 +877,26 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
   plan.send_buffer.assign(plan.send_src.size() * static_cast<std::size_t>(F), 0.0);
   plan.recv_buffer.assign(static_cast<std::size_t>(recv_first[P]) * static_cast<std::size_t>(F), 0.0);
   plan.requests.resize(plan.recv_rank.size() + plan.send_rank.size());
-  group_ghost_rows(plan);
+  group_ghost_rows(plan, previous.get(), slot_now);
   spare_plan_ = std::move(previous);
   // The scratch points sit after the blocks in every field array.
   for (auto& field : data_) field.resize(static_cast<std::size_t>(plan.scratch_start + scratch_points), 0.0);
 }
 
 template <int Dim>
-void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan) const {
+void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan, const GhostPlan* previous,
+                                         std::span<const std::int64_t> slot_now) const {
   for (std::size_t list = 0; list < plan.copy_runs.size(); ++list) {
     plan.copy_runs[list].clear();
     plan.sum_rows[list].clear();
     plan.remote_rows[list].clear();
     for (auto& stage : plan.derived_rows[list]) stage.clear();
   }
+  for (auto& list : plan.block_group_begin)
+    for (auto& begin : list) begin.clear();
+  // The old plan's grouping serves the blocks reused from it if it was made for this reach.
+  const bool regroup_reused = !previous || previous->grouped_reach != stencil_reach_;
+  plan.grouped_reach = stencil_reach_;
   // Per array point: its group (0 within the stencil reach, interior points unused).
   const auto shape = layout_.shape();
   const int g = layout_.ghosts, bs = config_.block_size;
@@ -889,6 +911,7 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan) const {
     }
     group_of[p] = outside == 0 || deepest <= stencil_reach_[static_cast<std::size_t>(outside - 1)] ? 0 : 1;
   }
+  std::array<std::size_t, 3> run_floor{};  // the runs before these are other blocks'
   auto add = [&](std::size_t list, std::size_t k) {
     if (plan.row_stage[k] > 0) {
       plan.derived_rows[list][plan.row_stage[k] - 1u].push_back(static_cast<std::int32_t>(k));
@@ -901,18 +924,61 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan) const {
       return;
     }
     if (plan.is_copy(k)) {
-      const std::int64_t dest = plan.dest[k], src = plan.local_src[static_cast<std::size_t>(plan.local_begin[k])];
+      const auto t = static_cast<std::size_t>(plan.local_begin[k]);
+      const std::int64_t dest = plan.dest[k], src = plan.local_src[t];
       auto& runs = plan.copy_runs[list];
-      auto* last = runs.empty() ? nullptr : &runs.back();
+      auto* last = runs.size() > run_floor[list] ? &runs.back() : nullptr;  // not another block's
       if (last && dest == last->dest + last->length && src == last->src + last->length) ++last->length;
-      else runs.push_back({dest, src, 1});
+      else runs.push_back({dest, src, 1, plan.local_src_slot[t]});
     } else {
       plan.sum_rows[list].push_back(static_cast<std::int32_t>(k));
+    }
+  };
+  auto mark_block_begin = [&] {
+    for (std::size_t list = 0; list < plan.block_group_begin.size(); ++list) {
+      auto& begin = plan.block_group_begin[list];
+      begin[0].push_back(static_cast<std::int32_t>(plan.copy_runs[list].size()));
+      begin[1].push_back(static_cast<std::int32_t>(plan.sum_rows[list].size()));
+      begin[2].push_back(static_cast<std::int32_t>(plan.remote_rows[list].size()));
+      begin[3].push_back(static_cast<std::int32_t>(plan.derived_rows[list][0].size()));
+      begin[4].push_back(static_cast<std::int32_t>(plan.derived_rows[list][1].size()));
+    }
+  };
+  // A reused block's entries in lists 0 and 1, from the old plan (slot o): rows renumbered by
+  // the shift of its first row, runs by the shift of their blocks (as build_ghost_plan moved
+  // their rows). It has no remote rows and none in list 2.
+  auto take_old_entries = [&](std::size_t s, std::size_t o) {
+    const GhostPlan& old = *previous;
+    const std::int32_t row_shift = plan.block_row_begin[s] - old.block_row_begin[o];
+    const auto volume = static_cast<std::int64_t>(block_volume_);
+    const std::int64_t dest_shift = (static_cast<std::int64_t>(s) - static_cast<std::int64_t>(o)) * volume;
+    for (std::size_t list = 0; list < plan.block_group_begin.size(); ++list) {
+      const auto& begin = old.block_group_begin[list];
+      for (auto r = begin[0][o]; r < begin[0][o + 1]; ++r) {
+        auto run = old.copy_runs[list][static_cast<std::size_t>(r)];
+        const std::int64_t to = slot_now[static_cast<std::size_t>(run.src_slot)];
+        run.dest += dest_shift;
+        run.src += (to - run.src_slot) * volume;
+        run.src_slot = static_cast<std::int32_t>(to);
+        plan.copy_runs[list].push_back(run);
+      }
+      auto rows = [&](const std::vector<std::int32_t>& from, std::size_t kind, std::vector<std::int32_t>& to) {
+        for (auto r = begin[kind][o]; r < begin[kind][o + 1]; ++r) to.push_back(from[static_cast<std::size_t>(r)] + row_shift);
+      };
+      rows(old.sum_rows[list], 1, plan.sum_rows[list]);
+      rows(old.derived_rows[list][0], 3, plan.derived_rows[list][0]);
+      rows(old.derived_rows[list][1], 4, plan.derived_rows[list][1]);
     }
   };
   // A scratch point is filled with the first group that reads it.
   std::vector<std::uint8_t> scratch_group;
   for (std::size_t s = 0; s + 1 < plan.block_row_begin.size(); ++s) {
+    mark_block_begin();
+    if (!regroup_reused && plan.reused_from[s] >= 0) {
+      take_old_entries(s, static_cast<std::size_t>(plan.reused_from[s]));
+      continue;
+    }
+    for (std::size_t list = 0; list < run_floor.size(); ++list) run_floor[list] = plan.copy_runs[list].size();
     const auto base = static_cast<std::int64_t>(s * block_volume_);
     const bool rebuilt = plan.block_rebuilt[s] != 0;
     const auto first_row = static_cast<std::size_t>(plan.block_row_begin[s]);
@@ -936,6 +1002,7 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan) const {
       if (rebuilt) add(kRebuiltRows, k);
     }
   }
+  mark_block_begin();
 }
 
 template <int Dim>
@@ -945,7 +1012,7 @@ void AdaptiveGrid<Dim>::set_stencil_reach(int along_axis, int across_two_axes) {
   const std::array<int, 3> reach{along_axis, across_two_axes, 0};
   if (stencil_reach_ == reach) return;
   stencil_reach_ = reach;
-  if (plan_) group_ghost_rows(*plan_);
+  if (plan_) group_ghost_rows(*plan_, nullptr, {});
 }
 
 namespace {

@@ -264,8 +264,10 @@ class AdaptiveGrid {
   /// kRebuiltRows (after an adaptation).
   void fill_ghost_lists(std::initializer_list<std::size_t> lists);
   /// Sorts the plan's rows into copy runs, sums and remote rows, per list: 0, within the
-  /// stencil reach, 1, the others, and kRebuiltRows, the rows of blocks built afresh.
-  void group_ghost_rows(GhostPlan& plan) const;
+  /// stencil reach, 1, the others, and kRebuiltRows, the rows of blocks built afresh. With the
+  /// plan its blocks were reused from (and slot_now: old slot -> slot now), a reused block's
+  /// entries are that plan's, renumbered.
+  void group_ghost_rows(GhostPlan& plan, const GhostPlan* previous, std::span<const std::int64_t> slot_now) const;
   static constexpr std::size_t kRebuiltRows = 2;
   void allocate_local();
   /// Builds the ghost plan of the current grid. With the plan of the grid before an adaptation

@@ -426,10 +426,13 @@ TEST(AdaptiveGrid, StencilGhostsAreThoseOfAFullFill3D) { stencil_ghosts_are_thos
 // from the previous plan, the others resolved again: after every cycle of a moving front the
 // ghosts must equal, bitwise, those of a plan built from scratch for the same leaves. On two
 // ranks, blocks that read another rank are always rebuilt, and repartitioning moves blocks.
+// A reused block's copy runs and sums are taken from the old plan's grouping, renumbered
+// (group_ghost_rows); with a stencil reach set (reach > 0) they fall in two lists, both filled.
 template <int Dim>
-void reused_ghost_rows_match_a_fresh_plan(bool periodic) {
+void reused_ghost_rows_match_a_fresh_plan(bool periodic, int reach = 0) {
   const auto c = front_grid<Dim>(periodic);
   gw::AdaptiveGrid<Dim> grid(c);
+  if (reach > 0) grid.set_stencil_reach(reach, 1);
   const auto th = front_threshold();
   std::int64_t checked = 0;
   for (int cycle = 0; cycle < 6; ++cycle) {
@@ -465,6 +468,7 @@ void reused_ghost_rows_match_a_fresh_plan(bool periodic) {
 TEST(AdaptiveGrid, ReusedGhostRowsMatchAFreshPlan2D) {
   reused_ghost_rows_match_a_fresh_plan<2>(true);
   reused_ghost_rows_match_a_fresh_plan<2>(false);
+  reused_ghost_rows_match_a_fresh_plan<2>(true, 2);
 }
 TEST(AdaptiveGrid, ReusedGhostRowsMatchAFreshPlan3D) { reused_ghost_rows_match_a_fresh_plan<3>(false); }
 
