@@ -1639,6 +1639,26 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_with_tags(std::span<const AdaptTag> tags) {
   std::vector<std::vector<std::int64_t>> head(P);
   std::vector<std::vector<double>> body(P);
   std::array<std::array<AxisStencil, kMaxBlockSize>, Dim> st;
+  // Writes a new block's interior values (fields x interior points, interior order) from
+  // `values` into local slot `slot`: its whole interior (part < 0) or the quarter (eighth) of a
+  // coarsened parent that child `part` gives, its all-even points. Values for a block of this
+  // rank are written at once, the others' sent in these blocks' messages.
+  auto write_new_block = [&](std::size_t slot, int part, const double*& values) {
+    for (int f = 0; f < F; ++f) {
+      double* u = data_[static_cast<std::size_t>(f)].data() + slot * block_volume_;
+      if (part < 0) {
+        for_each_interior<Dim>(bs, g, shape, [&](std::size_t, const Index&, std::ptrdiff_t at) { u[at] = *values++; });
+      } else {
+        for_each_interior<Dim>(bs / 2, 0, ArrayShape<Dim>{}, [&](std::size_t, const Index& i, std::ptrdiff_t) {
+          Index q{};
+          for (int a = 0; a < Dim; ++a)
+            q[static_cast<std::size_t>(a)] = i[static_cast<std::size_t>(a)] + ((part >> a) & 1) * bs / 2 + g;
+          u[shape.index(q)] = *values++;
+        });
+      }
+    }
+  };
+  std::vector<double> values, scratch;  // one new block's, and separable_tensor_sums'
   for (std::size_t s = 0; s < old_keys.size(); ++s) {
     const Key key = old_keys[s];
     if (const auto leaf = forest_.find(key)) {
@@ -1661,31 +1681,40 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_with_tags(std::span<const AdaptTag> tags) {
       for (int k = 0; k < Key::kChildren; ++k) {
         const std::size_t child_leaf = *forest_.find(key.child(k));
         const auto who = static_cast<std::size_t>(owner(child_leaf));
-        head[who].insert(head[who].end(), {static_cast<std::int64_t>(child_leaf), -1});
         child_stencils<Dim>(key, k, config_, g, st);
-        for (int f = 0; f < F; ++f) {
-          const double* u = old_data[static_cast<std::size_t>(f)].data() + s * block_volume_;
-          for_each_interior<Dim>(bs, g, shape, [&](std::size_t, const Index& i, std::ptrdiff_t) {
-            std::array<const AxisStencil*, Dim> row{};
-            for (int a = 0; a < Dim; ++a) row[static_cast<std::size_t>(a)] = &st[static_cast<std::size_t>(a)][static_cast<std::size_t>(i[static_cast<std::size_t>(a)])];
-            body[who].push_back(tensor_sum<Dim>(u, stride, row));
-          });
+        values.resize(static_cast<std::size_t>(F) * interior_points_);
+        for (int f = 0; f < F; ++f)
+          separable_tensor_sums<Dim>(old_data[static_cast<std::size_t>(f)].data() + s * block_volume_, stride, st, bs,
+                                     scratch, values.data() + static_cast<std::size_t>(f) * interior_points_);
+        const double* from = values.data();
+        if (static_cast<int>(who) == rank_) {
+          write_new_block(child_leaf - first_leaf_, -1, from);
+          continue;
         }
+        head[who].insert(head[who].end(), {static_cast<std::int64_t>(child_leaf), -1});
+        body[who].insert(body[who].end(), values.begin(), values.end());
       }
     } else {
       const auto parent = forest_.find(key.parent());
       if (!parent) throw std::logic_error("AdaptiveGrid: a block changed by more than one level");
       const auto who = static_cast<std::size_t>(owner(*parent));
-      head[who].insert(head[who].end(), {static_cast<std::int64_t>(*parent), key.child_index()});
+      values.clear();
       for (int f = 0; f < F; ++f) {
         const double* u = old_data[static_cast<std::size_t>(f)].data() + s * block_volume_;
         // The parent's points in this child's region are the child's all-even points.
         for_each_interior<Dim>(bs / 2, 0, ArrayShape<Dim>{}, [&](std::size_t, const Index& i, std::ptrdiff_t) {
           Index q{};
           for (int a = 0; a < Dim; ++a) q[static_cast<std::size_t>(a)] = 2 * i[static_cast<std::size_t>(a)] + g;
-          body[who].push_back(u[shape.index(q)]);
+          values.push_back(u[shape.index(q)]);
         });
       }
+      const double* from = values.data();
+      if (static_cast<int>(who) == rank_) {
+        write_new_block(*parent - first_leaf_, key.child_index(), from);
+        continue;
+      }
+      head[who].insert(head[who].end(), {static_cast<std::int64_t>(*parent), key.child_index()});
+      body[who].insert(body[who].end(), values.begin(), values.end());
     }
   }
   std::vector<int> hs(P), hr(P), bsend(P), brecv(P), hsf(P + 1, 0), hrf(P + 1, 0), bsf(P + 1, 0), brf(P + 1, 0);
@@ -1710,24 +1739,9 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_with_tags(std::span<const AdaptTag> tags) {
   MPI_Alltoallv(hflat.data(), hs.data(), hsf.data(), MPI_INT64_T, hin.data(), hr.data(), hrf.data(), MPI_INT64_T, comm_);
   MPI_Alltoallv(bflat.data(), bsend.data(), bsf.data(), MPI_DOUBLE, bin.data(), brecv.data(), brf.data(), MPI_DOUBLE, comm_);
 
-  std::size_t at_body = 0;
-  for (std::size_t k = 0; k < hin.size(); k += 2) {
-    const auto slot = static_cast<std::size_t>(hin[k]) - first_leaf_;
-    const auto part = static_cast<int>(hin[k + 1]);
-    for (int f = 0; f < F; ++f) {
-      double* u = data_[static_cast<std::size_t>(f)].data() + slot * block_volume_;
-      if (part < 0) {
-        for_each_interior<Dim>(bs, g, shape, [&](std::size_t, const Index&, std::ptrdiff_t at) { u[at] = bin[at_body++]; });
-      } else {
-        for_each_interior<Dim>(bs / 2, 0, ArrayShape<Dim>{}, [&](std::size_t, const Index& i, std::ptrdiff_t) {
-          Index q{};
-          for (int a = 0; a < Dim; ++a)
-            q[static_cast<std::size_t>(a)] = i[static_cast<std::size_t>(a)] + ((part >> a) & 1) * bs / 2 + g;
-          u[shape.index(q)] = bin[at_body++];
-        });
-      }
-    }
-  }
+  const double* received = bin.data();
+  for (std::size_t k = 0; k < hin.size(); k += 2)
+    write_new_block(static_cast<std::size_t>(hin[k]) - first_leaf_, static_cast<int>(hin[k + 1]), received);
   build_ghost_plan(std::move(plan_), old_keys);
   // A block whose rows were copied from the old plan is unchanged, as is every leaf its rows
   // read: its ghosts, copied with its array, already hold what a fill would give them.
