@@ -353,19 +353,27 @@ struct PointResolver {
 
   /// Leaf containing the level-`level` point `idx` (inside the domain). Levels are tried
   /// outwards from `level` (2:1 balance puts the answer within a level or two), and the last
-  /// hit is remembered: consecutive ghost points mostly fall into the same block.
+  /// few hits are remembered: consecutive ghost points mostly fall into the same block, and a
+  /// block's walk through its array alternates between a few (the left and right neighbours
+  /// along each row of its side faces), which a single remembered hit missed at every turn.
   std::size_t leaf_containing(int level, const std::array<GlobalIndex64, Dim>& idx) const {
-    if (last_level >= 0) {
+    for (int k = 0; k < remembered; ++k) {
+      const Hit& hit = recent[static_cast<std::size_t>(k)];
       // A range test, not a division (64-bit divisions by the block size dominated the rebuild:
       // a coarse-fine ghost resolves up to 36 points in 2D, each tested here).
       bool same = true;
       for (int a = 0; a < Dim && same; ++a) {
         const auto au = static_cast<std::size_t>(a);
-        const GlobalIndex64 at = last_level >= level ? idx[au] << (last_level - level) : idx[au] >> (level - last_level);
-        const GlobalIndex64 offset = at - last_first[au];
+        const GlobalIndex64 at = hit.level >= level ? idx[au] << (hit.level - level) : idx[au] >> (level - hit.level);
+        const GlobalIndex64 offset = at - hit.first[au];
         same = offset >= 0 && offset < config.block_size;
       }
-      if (same) return last_leaf;
+      if (!same) continue;
+      if (k > 0) std::rotate(recent.begin(), recent.begin() + k, recent.begin() + k + 1);  // to the front
+      last_level = recent[0].level;
+      last_coords = recent[0].coords;
+      last_leaf = recent[0].leaf;
+      return last_leaf;
     }
     for (int step = 0; step <= 2 * config.max_level + 1; ++step) {
       const int l = level + ((step % 2 == 0) ? step / 2 : -(step + 1) / 2);
@@ -379,9 +387,13 @@ struct PointResolver {
       if (const auto found = forest.find(BlockKey<Dim>::from_coords(l, c))) {
         last_level = l;
         last_coords = c;
-        for (int a = 0; a < Dim; ++a)
-          last_first[static_cast<std::size_t>(a)] = static_cast<GlobalIndex64>(c[static_cast<std::size_t>(a)]) * config.block_size;
         last_leaf = *found;
+        Hit hit{l, c, {}, *found};
+        for (int a = 0; a < Dim; ++a)
+          hit.first[static_cast<std::size_t>(a)] = static_cast<GlobalIndex64>(c[static_cast<std::size_t>(a)]) * config.block_size;
+        std::rotate(recent.begin(), recent.end() - 1, recent.end());  // the oldest out
+        recent[0] = hit;
+        remembered = std::min(remembered + 1, static_cast<int>(recent.size()));
         // Consecutive lookups mostly find the same few leaves: skip repeats of the last one.
         if (found_leaves && (found_leaves->empty() || found_leaves->back() != *found)) found_leaves->push_back(*found);
         return *found;
@@ -400,14 +412,27 @@ struct PointResolver {
     }
     return i;
   }
+  /// The leaf the last lookup found: its level, coordinates and index.
   mutable int last_level = -1;
   mutable std::array<std::uint32_t, Dim> last_coords{};
-  mutable std::array<GlobalIndex64, Dim> last_first{};  ///< last_coords * block_size
   mutable std::size_t last_leaf = 0;
+  /// The leaves the last lookups found, most recent first: level, coordinates, first point
+  /// (coordinates * block size) and index.
+  struct Hit {
+    int level;
+    std::array<std::uint32_t, Dim> coords;
+    std::array<GlobalIndex64, Dim> first;
+    std::size_t leaf;
+  };
+  mutable std::array<Hit, 4> recent{};
+  mutable int remembered = 0;
   /// When set, every leaf found by a lookup (not by the remembered hit) is appended: with the
   /// remembered hit forgotten before each block, these are all the leaves its ghosts read.
   std::vector<std::size_t>* found_leaves = nullptr;
-  void forget() const { last_level = -1; }
+  void forget() const {
+    last_level = -1;
+    remembered = 0;
+  }
 
   /// Appends the terms giving the value at (level, idx): a leaf's point, by injection from a
   /// finer leaf, or by Deslauriers-Dubuc prediction from level - 1.
