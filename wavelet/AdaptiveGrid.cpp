@@ -755,6 +755,25 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
       plan.remote_begin[row + 1] = static_cast<std::int32_t>(remote_pending.size());
       ++row;
     };
+    // Per region around the block (3^Dim, by side along each axis: below, inside, above), the
+    // same-level leaf of this rank there, or -1: its ghosts are copies from it (most ghosts),
+    // found without a lookup per point.
+    std::array<std::int64_t, Dim == 1 ? 3 : Dim == 2 ? 9 : 27> same_level{};
+    for (std::size_t r = 0; r < same_level.size(); ++r) {
+      std::array<int, Dim> direction{};
+      bool centre = true;
+      for (std::size_t a = 0, rest = r; a < static_cast<std::size_t>(Dim); ++a, rest /= 3) {
+        direction[a] = static_cast<int>(rest % 3) - 1;
+        centre = centre && direction[a] == 0;
+      }
+      same_level[r] = -1;
+      if (centre) continue;
+      const auto beyond = forest_.shifted(key, direction);
+      const auto leaf = beyond ? forest_.find(*beyond) : std::nullopt;
+      if (!leaf || *leaf < first_leaf_ || *leaf >= first_leaf_ + local_keys_.size()) continue;
+      same_level[r] = static_cast<std::int64_t>(*leaf - first_leaf_);
+      found.push_back(*leaf);  // a leaf its rows read
+    }
     // The point's array coordinates, counted along (two 64-bit divisions per point in
     // ArrayShape::coords were a fifth of a rebuild).
     Index i{};
@@ -784,6 +803,23 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
       if (outside) {
         // Never read: derivatives use one-sided rows and prediction one-sided stencils there.
         plan.kind[at] = static_cast<std::uint8_t>(GhostKind::kOutsideDomain);
+        end_row();
+        continue;
+      }
+      std::size_t region = 0;
+      for (int a = Dim - 1; a >= 0; --a) {
+        const int x = i[static_cast<std::size_t>(a)];
+        region = 3 * region + (x < g ? 0 : x < g + bs ? 1 : 2);
+      }
+      if (const std::int64_t from = same_level[region]; from >= 0) {
+        // The neighbour's point: one block's width back along each axis it lies beyond.
+        Index q = i;
+        for (std::size_t a = 0, rest = region; a < static_cast<std::size_t>(Dim); ++a, rest /= 3)
+          q[a] -= (static_cast<int>(rest % 3) - 1) * bs;
+        plan.kind[at] = static_cast<std::uint8_t>(GhostKind::kSameLevel);
+        plan.local_src.push_back(from * static_cast<std::int64_t>(block_volume_) + shape.index(q));
+        plan.local_src_slot.push_back(static_cast<std::int32_t>(from));
+        plan.local_w.push_back(1.0);
         end_row();
         continue;
       }
