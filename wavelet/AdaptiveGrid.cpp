@@ -973,27 +973,36 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan, const GhostPlan* previ
     group_of[p] = outside == 0 || deepest <= stencil_reach_[static_cast<std::size_t>(outside - 1)] ? 0 : 1;
   }
   std::array<std::size_t, 3> run_floor{};  // the runs before these are other blocks'
-  auto add = [&](std::size_t list, std::size_t k) {
+  // Row k into list `list`, and (a row of a block built afresh) into kRebuiltRows too: sorted
+  // once for both.
+  auto add = [&](std::size_t list, std::size_t k, bool rebuilt) {
+    const auto into = [&](auto&& append) {
+      append(list);
+      if (rebuilt) append(kRebuiltRows);
+    };
+    const auto row = static_cast<std::int32_t>(k);
     if (plan.row_stage[k] > 0) {
-      plan.derived_rows[list][plan.row_stage[k] - 1u].push_back(static_cast<std::int32_t>(k));
+      into([&](std::size_t l) { plan.derived_rows[l][plan.row_stage[k] - 1u].push_back(row); });
       return;
     }
     // A row with remote terms is summed whole once its messages are in (fill_ghost_lists), its
     // local terms with them: not in the local pass as well.
     if (plan.remote_begin[k + 1] != plan.remote_begin[k]) {
-      plan.remote_rows[list].push_back(static_cast<std::int32_t>(k));
+      into([&](std::size_t l) { plan.remote_rows[l].push_back(row); });
       return;
     }
-    if (plan.is_copy(k)) {
-      const auto t = static_cast<std::size_t>(plan.local_begin[k]);
-      const std::int64_t dest = plan.dest[k], src = plan.local_src[t];
-      auto& runs = plan.copy_runs[list];
-      auto* last = runs.size() > run_floor[list] ? &runs.back() : nullptr;  // not another block's
+    if (!plan.is_copy(k)) {
+      into([&](std::size_t l) { plan.sum_rows[l].push_back(row); });
+      return;
+    }
+    const auto t = static_cast<std::size_t>(plan.local_begin[k]);
+    const std::int64_t dest = plan.dest[k], src = plan.local_src[t];
+    into([&](std::size_t l) {
+      auto& runs = plan.copy_runs[l];
+      auto* last = runs.size() > run_floor[l] ? &runs.back() : nullptr;  // not another block's
       if (last && dest == last->dest + last->length && src == last->src + last->length) ++last->length;
       else runs.push_back({dest, src, 1, plan.local_src_slot[t]});
-    } else {
-      plan.sum_rows[list].push_back(static_cast<std::int32_t>(k));
-    }
+    });
   };
   auto mark_block_begin = [&] {
     for (std::size_t list = 0; list < plan.block_group_begin.size(); ++list) {
@@ -1059,8 +1068,7 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan, const GhostPlan* previ
       const bool in_scratch = plan.dest[k] >= plan.scratch_start;
       add(in_scratch ? scratch_group[static_cast<std::size_t>(plan.dest[k] - scratch_base)]
                      : group_of[static_cast<std::size_t>(plan.dest[k] - base)],
-          k);
-      if (rebuilt) add(kRebuiltRows, k);
+          k, rebuilt);
     }
   }
   mark_block_begin();
