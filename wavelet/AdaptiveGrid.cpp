@@ -416,8 +416,8 @@ struct PointResolver {
   mutable int last_level = -1;
   mutable std::array<std::uint32_t, Dim> last_coords{};
   mutable std::size_t last_leaf = 0;
-  /// The leaves the last lookups found, most recent first: level, coordinates, first point
-  /// (coordinates * block size) and index.
+  /// The last few leaves found, the one last found or hit first: level, coordinates, first
+  /// point (coordinates * block size) and index.
   struct Hit {
     int level;
     std::array<std::uint32_t, Dim> coords;
@@ -426,8 +426,9 @@ struct PointResolver {
   };
   mutable std::array<Hit, 4> recent{};
   mutable int remembered = 0;
-  /// When set, every leaf found by a lookup (not by the remembered hit) is appended: with the
-  /// remembered hit forgotten before each block, these are all the leaves its ghosts read.
+  /// When set, every leaf found by a lookup (not among the remembered hits) is appended: with
+  /// the hits forgotten before each block, these are all the leaves its ghosts read (but the
+  /// same-level ones build_ghost_plan finds per region, which it appends itself).
   std::vector<std::size_t>* found_leaves = nullptr;
   void forget() const {
     last_level = -1;

@@ -64,7 +64,9 @@ inline LineStencil dd_line(int order, GlobalIndex64 odd, GlobalIndex64 n, bool p
   return s;
 }
 
-/// sum over the tensor product of per-axis stencils of w * u (strides of an ArrayShape).
+/// sum over the tensor product of per-axis stencils of w * u (strides of an ArrayShape), at one
+/// point: the definition separable_tensor_sums computes for a whole block (a test holds the two
+/// bitwise equal).
 template <int Dim>
 double tensor_sum(const double* u, const std::array<std::ptrdiff_t, Dim>& stride,
                   const std::array<const AxisStencil*, Dim>& st) {
