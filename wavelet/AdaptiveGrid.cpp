@@ -1,6 +1,7 @@
 #include "wavelet/AdaptiveGrid.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <atomic>
 #include <cmath>
 #include <limits>
@@ -11,6 +12,11 @@
 #include <type_traits>
 #include <unordered_set>
 
+#if defined(__x86_64__)
+#include <x86intrin.h>
+#endif
+
+#include "core/Timers.hpp"
 #include "wavelet/BlockPrediction.hpp"
 #include "wavelet/DetailKernels.hpp"
 
@@ -32,6 +38,16 @@ constexpr int ghost_depth(int x, int bs, int g) { return x < g ? g - x : x >= g 
 
 /// Calls f(std::integral_constant<int, k>, fields) on the field arrays in groups of k: the
 /// fluid's 4 (2D) or 5 (3D) conserved fields together, other counts one by one.
+/// A cheap monotone tick count, to time parts of a loop apart: the x86 time-stamp counter
+/// (constant rate on current processors), else steady_clock's.
+inline std::uint64_t cycle_count() {
+#if defined(__x86_64__)
+  return __rdtsc();
+#else
+  return static_cast<std::uint64_t>(std::chrono::steady_clock::now().time_since_epoch().count());
+#endif
+}
+
 template <class F>
 void for_field_groups(std::vector<std::vector<double>>& data, F&& f) {
   switch (data.size()) {
@@ -117,6 +133,10 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   std::array<int, 3> grouped_reach{-1, -1, -1};
   // Per local block: its slot in the plan it was reused from, or -1 (built afresh).
   std::vector<std::int32_t> reused_from;
+  // The blocks in the order write_and_fill_stencil_ghosts fills them: each once the last block
+  // its rows read has been written (fill_when_written[fill_when_begin[t] .. fill_when_begin[t +
+  // 1]) after block t), those reading another rank's values after the messages.
+  std::vector<std::int32_t> fill_when_begin, fill_when_written, fill_after_messages;
   // Messages: point-major buffers [point][field], one contiguous range per peer rank.
   std::vector<int> recv_rank, recv_first, recv_count;
   std::vector<int> send_rank, send_first, send_count;
@@ -140,6 +160,7 @@ struct AdaptiveGrid<Dim>::GhostPlan {
       for (auto& begin : list) begin.clear();
     reused_from.clear();
     grouped_reach = {-1, -1, -1};
+    empty(fill_when_begin, fill_when_written, fill_after_messages);
   }
 };
 
@@ -1073,6 +1094,38 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan, const GhostPlan* previ
     }
   }
   mark_block_begin();
+  order_fill_while_writing(plan);
+}
+
+template <int Dim>
+void AdaptiveGrid<Dim>::order_fill_while_writing(GhostPlan& plan) const {
+  // A block's rows read the interiors of its dependencies (the leaves they were resolved from)
+  // and its own ghosts and scratch points: it can be filled once the last of them is written.
+  const std::size_t n = plan.block_row_begin.size() - 1;
+  std::vector<std::int32_t> when(n, -1);
+  plan.fill_when_begin.assign(n + 1, 0);
+  plan.fill_after_messages.clear();
+  for (std::size_t s = 0; s < n; ++s) {
+    auto last = static_cast<std::int32_t>(s);
+    bool local = plan.block_has_remote[s] == 0;
+    for (auto d = plan.block_dependency_begin[s]; d < plan.block_dependency_begin[s + 1] && local; ++d) {
+      const std::int32_t read = plan.block_dependencies[static_cast<std::size_t>(d)];
+      local = read >= 0;
+      last = std::max(last, read);
+    }
+    if (!local) {
+      plan.fill_after_messages.push_back(static_cast<std::int32_t>(s));
+      continue;
+    }
+    when[s] = last;
+    ++plan.fill_when_begin[static_cast<std::size_t>(last) + 1];
+  }
+  for (std::size_t t = 0; t < n; ++t) plan.fill_when_begin[t + 1] += plan.fill_when_begin[t];
+  plan.fill_when_written.assign(static_cast<std::size_t>(plan.fill_when_begin[n]), 0);
+  std::vector<std::int32_t> next(plan.fill_when_begin.begin(), plan.fill_when_begin.end() - 1);
+  for (std::size_t s = 0; s < n; ++s)
+    if (when[s] >= 0)
+      plan.fill_when_written[static_cast<std::size_t>(next[static_cast<std::size_t>(when[s])]++)] = static_cast<std::int32_t>(s);
 }
 
 template <int Dim>
@@ -1092,7 +1145,7 @@ namespace {
 /// values are bitwise the same; with the fields side by side a row's indices and weights are
 /// read once, and its kFields sums are independent chains (a lone sum waits on each add).
 template <int kFields, typename Plan>
-void sum_local_rows(const Plan& plan, const std::vector<std::int32_t>& rows, std::vector<double>* fields) {
+void sum_local_rows(const Plan& plan, std::span<const std::int32_t> rows, std::vector<double>* fields) {
   std::array<double*, kFields> u{};
   for (std::size_t f = 0; f < kFields; ++f) u[f] = fields[f].data();
   const auto* begin = plan.local_begin.data();
@@ -1110,15 +1163,44 @@ void sum_local_rows(const Plan& plan, const std::vector<std::int32_t>& rows, std
 /// The local rows of a ghost plan's list (copies and sums) for kFields consecutive field arrays.
 /// Their sources are interior points, so the order of the rows does not matter. A copy is
 /// written 0 + u, what the weighted sum gives (-0 becomes +0).
-template <int kFields, typename Plan>
-void fill_local_terms(const Plan& plan, std::size_t list, std::vector<double>* fields) {
-  for (const auto& run : plan.copy_runs[list])
+template <int kFields, typename Run>
+void copy_runs(std::span<const Run> runs, std::vector<double>* fields) {
+  for (const auto& run : runs)
     for (std::size_t f = 0; f < kFields; ++f) {
       double* to = fields[f].data() + run.dest;
       const double* from = fields[f].data() + run.src;
       for (std::int32_t k = 0; k < run.length; ++k) to[k] = 0.0 + from[k];
     }
+}
+
+template <int kFields, typename Plan>
+void fill_local_terms(const Plan& plan, std::size_t list, std::vector<double>* fields) {
+  copy_runs<kFields>(std::span(plan.copy_runs[list]), fields);
   sum_local_rows<kFields>(plan, plan.sum_rows[list], fields);
+}
+
+/// The rows with remote terms, all their terms in their order (the leading remote ones, the
+/// local ones, the others): the same additions one rank makes.
+template <typename Plan>
+void sum_remote_rows(const Plan& plan, std::span<const std::int32_t> rows, std::vector<std::vector<double>>& data) {
+  for (std::size_t f = 0; f < data.size(); ++f) {
+    double* u = data[f].data();
+    const double* received = plan.recv_buffer.data() + f;
+    auto add_remote = [&](double& v, std::int32_t from, std::int32_t to) {
+      for (auto t = static_cast<std::size_t>(from); t < static_cast<std::size_t>(to); ++t)
+        v += plan.remote_w[t] * received[plan.remote_src[t]];
+    };
+    for (const std::int32_t row : rows) {
+      const auto k = static_cast<std::size_t>(row);
+      const std::int32_t lead = plan.remote_begin[k] + plan.remote_lead[k];
+      double v = 0;
+      add_remote(v, plan.remote_begin[k], lead);
+      for (auto t = static_cast<std::size_t>(plan.local_begin[k]); t < static_cast<std::size_t>(plan.local_begin[k + 1]); ++t)
+        v += plan.local_w[t] * u[plan.local_src[t]];
+      add_remote(v, lead, plan.remote_begin[k + 1]);
+      u[plan.dest[k]] = v;
+    }
+  }
 }
 
 }  // namespace
@@ -1171,30 +1253,69 @@ void AdaptiveGrid<Dim>::fill_ghost_lists(std::initializer_list<std::size_t> list
   // share most of their remote points).
   for (const std::size_t list : lists) fill_local_ghosts(plan, list);
   MPI_Waitall(static_cast<int>(nreq), plan.requests.data(), MPI_STATUSES_IGNORE);
-  // The rows with remote terms, all their terms in their order (the leading remote ones, the
-  // local ones, the others): the same additions one rank makes.
   if (!plan.remote_src.empty())
-    for (const std::size_t list : lists)
-      for (std::size_t f = 0; f < Fu; ++f) {
-        double* u = data_[f].data();
-        const double* received = plan.recv_buffer.data() + f;
-        auto add_remote = [&](double& v, std::int32_t from, std::int32_t to) {
-          for (auto t = static_cast<std::size_t>(from); t < static_cast<std::size_t>(to); ++t)
-            v += plan.remote_w[t] * received[plan.remote_src[t]];
-        };
-        for (const std::int32_t row : plan.remote_rows[list]) {
-          const auto k = static_cast<std::size_t>(row);
-          const std::int32_t lead = plan.remote_begin[k] + plan.remote_lead[k];
-          double v = 0;
-          add_remote(v, plan.remote_begin[k], lead);
-          for (auto t = static_cast<std::size_t>(plan.local_begin[k]); t < static_cast<std::size_t>(plan.local_begin[k + 1]); ++t)
-            v += plan.local_w[t] * u[plan.local_src[t]];
-          add_remote(v, lead, plan.remote_begin[k + 1]);
-          u[plan.dest[k]] = v;
-        }
-      }
+    for (const std::size_t list : lists) sum_remote_rows(plan, std::span(plan.remote_rows[list]), data_);
   // Last, the rows summed from the ghosts and scratch points filled above.
   fill_separable_ghosts(plan, lists);
+}
+
+template <int Dim>
+double AdaptiveGrid<Dim>::write_and_fill_stencil_ghosts(const std::function<void(std::size_t)>& write_block) {
+  GhostPlan& plan = *plan_;
+  const std::size_t n = local_blocks();
+  // Block s's entries of list 0 of one kind (copy runs, sums, remote rows, derived stages 1, 2).
+  auto entries = [&](const auto& list, std::size_t kind, std::size_t s) {
+    const auto& begin = plan.block_group_begin[0][kind];
+    return std::span(list).subspan(static_cast<std::size_t>(begin[s]), static_cast<std::size_t>(begin[s + 1] - begin[s]));
+  };
+  // A block's rows in the order fill_ghost_lists takes them: its local rows, then (after the
+  // messages) its remote rows, then those summed from its own ghosts, stage by stage.
+  auto fill_block = [&](std::size_t s, bool remote) {
+    for_field_groups(data_, [&](auto group, std::vector<double>* fields) {
+      constexpr int kFields = decltype(group)::value;
+      copy_runs<kFields>(entries(plan.copy_runs[0], 0, s), fields);
+      sum_local_rows<kFields>(plan, entries(plan.sum_rows[0], 1, s), fields);
+    });
+    if (remote) sum_remote_rows(plan, entries(plan.remote_rows[0], 2, s), data_);
+    for (std::size_t stage = 0; stage < 2; ++stage) {
+      const auto rows = entries(plan.derived_rows[0][stage], 3 + stage, s);
+      if (rows.empty()) continue;
+      for_field_groups(data_, [&](auto group, std::vector<double>* fields) {
+        sum_local_rows<decltype(group)::value>(plan, rows, fields);
+      });
+    }
+  };
+  const int F = fields();
+  const auto Fu = static_cast<std::size_t>(F);
+  std::size_t nreq = 0;
+  for (std::size_t k = 0; k < plan.recv_rank.size(); ++k)
+    MPI_Irecv(plan.recv_buffer.data() + static_cast<std::size_t>(plan.recv_first[k]) * Fu, plan.recv_count[k] * F,
+              MPI_DOUBLE, plan.recv_rank[k], 71, comm_, &plan.requests[nreq++]);
+  // Each block's ghosts right after the last block they read is written, while that block and
+  // most of the others are still in cache. The writing is timed apart from the filling on the
+  // cycle counter where there is one (a clock read per block would cost a few percent).
+  const Stopwatch whole;
+  std::uint64_t writing = 0, writing_and_filling = 0;
+  const std::uint64_t start = cycle_count();
+  for (std::size_t t = 0; t < n; ++t) {
+    const std::uint64_t before = cycle_count();
+    write_block(t);
+    writing += cycle_count() - before;
+    for (auto k = plan.fill_when_begin[t]; k < plan.fill_when_begin[t + 1]; ++k)
+      fill_block(static_cast<std::size_t>(plan.fill_when_written[static_cast<std::size_t>(k)]), false);
+  }
+  writing_and_filling = cycle_count() - start;
+  const double write_seconds =
+      writing_and_filling > 0 ? whole.seconds() * static_cast<double>(writing) / static_cast<double>(writing_and_filling) : 0.0;
+  for (std::size_t k = 0; k < plan.send_src.size(); ++k)
+    for (std::size_t f = 0; f < Fu; ++f)
+      plan.send_buffer[k * Fu + f] = data_[f][static_cast<std::size_t>(plan.send_src[k])];
+  for (std::size_t k = 0; k < plan.send_rank.size(); ++k)
+    MPI_Isend(plan.send_buffer.data() + static_cast<std::size_t>(plan.send_first[k]) * Fu, plan.send_count[k] * F,
+              MPI_DOUBLE, plan.send_rank[k], 71, comm_, &plan.requests[nreq++]);
+  MPI_Waitall(static_cast<int>(nreq), plan.requests.data(), MPI_STATUSES_IGNORE);
+  for (const std::int32_t s : plan.fill_after_messages) fill_block(static_cast<std::size_t>(s), true);
+  return write_seconds;
 }
 
 template <int Dim>

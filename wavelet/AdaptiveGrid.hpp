@@ -190,6 +190,13 @@ class AdaptiveGrid {
   /// their values. For a right-hand side whose stencils read no further: adaptation, refinement
   /// and derivative operators need fill_ghosts().
   void fill_stencil_ghosts();
+  /// fill_stencil_ghosts() while the caller writes the interiors: write_block(slot) is called
+  /// for every local block in slot order, and each block's ghosts are filled as soon as every
+  /// block they read has been written, while those values are still in cache (blocks reading
+  /// another rank's values after the messages). The ghosts are bitwise those of
+  /// fill_stencil_ghosts() after writing every block. Returns the seconds spent in write_block
+  /// (from the cycle counter where there is one), so that a caller can time the two apart.
+  double write_and_fill_stencil_ghosts(const std::function<void(std::size_t)>& write_block);
   /// The ghost points a caller's stencils read: up to `along_axis` layers beyond a face (outside
   /// the interior along one axis), up to `across_two_axes` layers along each of two axes (edges
   /// in 3D, corners in 2D), none outside along three. Default: every ghost point.
@@ -268,6 +275,8 @@ class AdaptiveGrid {
   /// plan its blocks were reused from (and slot_now: old slot -> slot now), a reused block's
   /// entries are that plan's, renumbered.
   void group_ghost_rows(GhostPlan& plan, const GhostPlan* previous, std::span<const std::int64_t> slot_now) const;
+  /// The blocks' order for write_and_fill_stencil_ghosts() (GhostPlan::fill_when_written).
+  void order_fill_while_writing(GhostPlan& plan) const;
   static constexpr std::size_t kRebuiltRows = 2;
   void allocate_local();
   /// Builds the ghost plan of the current grid. With the plan of the grid before an adaptation

@@ -134,6 +134,22 @@ void compare_with_snapshot(const gw::AdaptiveGrid<Dim>& grid, const std::vector<
     }
 }
 
+/// Whether array point p of a block is an interior point or a ghost within a stencil reach of
+/// `axis` layers beyond a face and `corner` along each of two axes (set_stencil_reach).
+template <int Dim>
+bool within_stencil_reach(const gw::AdaptiveGrid<Dim>& grid, std::size_t p, int axis, int corner) {
+  const auto i = grid.layout().shape().coords(static_cast<std::ptrdiff_t>(p));
+  const int g = grid.layout().ghosts, bs = grid.config().block_size;
+  int outside = 0, deepest = 0;
+  for (int a = 0; a < Dim; ++a) {
+    const int local = i[static_cast<std::size_t>(a)] - g;
+    const int depth = local < 0 ? -local : local >= bs ? local - bs + 1 : 0;
+    outside += depth > 0 ? 1 : 0;
+    deepest = std::max(deepest, depth);
+  }
+  return outside == 1 ? deepest <= axis : outside == 2 ? deepest <= corner : outside == 0;
+}
+
 }  // namespace
 
 TEST(AdaptiveGrid, BlockOriginAndSpacingFollowLevelAndMorton) {
@@ -373,17 +389,7 @@ void stencil_ghosts_are_those_of_a_full_fill() {
   grid.set_stencil_reach(kAxis, kCorner);
   const auto shape = grid.layout().shape();
   const int g = grid.layout().ghosts, bs = grid.config().block_size;
-  auto within = [&](std::size_t p) {
-    const auto i = shape.coords(static_cast<std::ptrdiff_t>(p));
-    int outside = 0, deepest = 0;
-    for (int a = 0; a < Dim; ++a) {
-      const int local = i[static_cast<std::size_t>(a)] - g;
-      const int depth = local < 0 ? -local : local >= bs ? local - bs + 1 : 0;
-      outside += depth > 0 ? 1 : 0;
-      deepest = std::max(deepest, depth);
-    }
-    return outside == 1 ? deepest <= kAxis : outside == 2 ? deepest <= kCorner : outside == 0;
-  };
+  auto within = [&](std::size_t p) { return within_stencil_reach<Dim>(grid, p, kAxis, kCorner); };
   // Poison every ghost, fill the stencil ghosts, and compare.
   for (int f = 0; f < 2; ++f)
     for (std::size_t s = 0; s < grid.local_blocks(); ++s) {
@@ -421,6 +427,62 @@ void stencil_ghosts_are_those_of_a_full_fill() {
 }
 TEST(AdaptiveGrid, StencilGhostsAreThoseOfAFullFill2D) { stencil_ghosts_are_those_of_a_full_fill<2>(); }
 TEST(AdaptiveGrid, StencilGhostsAreThoseOfAFullFill3D) { stencil_ghosts_are_those_of_a_full_fill<3>(); }
+
+// write_and_fill_stencil_ghosts fills each block's ghosts as soon as the blocks they read are
+// written: its interiors and stencil ghosts must be bitwise those of writing every block and
+// then fill_stencil_ghosts. Before it, every point holds another field's values, so a ghost
+// filled before one of its sources was written would show.
+template <int Dim>
+void filling_while_writing_is_writing_then_filling() {
+  auto c = unit_box<Dim>(false, 0, 3);
+  c.block_size = 8;
+  gw::AdaptiveGrid<Dim> grid(c);
+  refine_left_half(grid);
+  refine_left_half(grid);
+  constexpr int kAxis = 2, kCorner = 1;
+  grid.set_stencil_reach(kAxis, kCorner);
+  grid.sample([](const std::array<double, Dim>& x, std::span<double> v) {
+    double r = 0;
+    for (int a = 0; a < Dim; ++a) r += std::sin(3.0 * (a + 1) * x[static_cast<std::size_t>(a)]);
+    v[0] = r;
+    v[1] = std::cos(2 * x[0]);
+  });
+  grid.fill_stencil_ghosts();
+  const auto reference = snapshot(grid);
+  grid.sample([](const std::array<double, Dim>& x, std::span<double> v) {
+    v[0] = 1.0 + x[0];
+    v[1] = -3.0;
+  });
+  grid.fill_ghosts();
+  const auto shape = grid.layout().shape();
+  const int g = grid.layout().ghosts, bs = grid.config().block_size;
+  std::vector<std::size_t> written;
+  const double seconds = grid.write_and_fill_stencil_ghosts([&](std::size_t s) {
+    written.push_back(s);
+    for (int f = 0; f < 2; ++f) {
+      auto u = grid.block(f, s);
+      for (std::size_t p = 0; p < u.size(); ++p) {
+        const auto i = shape.coords(static_cast<std::ptrdiff_t>(p));
+        bool interior = true;
+        for (int a = 0; a < Dim; ++a) interior = interior && i[static_cast<std::size_t>(a)] >= g && i[static_cast<std::size_t>(a)] < g + bs;
+        if (interior) u[p] = reference[static_cast<std::size_t>(f)][s * u.size() + p];
+      }
+    }
+  });
+  EXPECT_GE(seconds, 0.0);
+  ASSERT_EQ(written.size(), grid.local_blocks());
+  for (std::size_t s = 0; s < written.size(); ++s) EXPECT_EQ(written[s], s);
+  std::int64_t compared = 0, wrong = 0;
+  compare_with_snapshot(grid, reference, [&](int, std::size_t, std::size_t p, double value, double expected) {
+    if (!within_stencil_reach<Dim>(grid, p, kAxis, kCorner)) return;
+    wrong += std::memcmp(&value, &expected, sizeof(double)) != 0 ? 1 : 0;
+    ++compared;
+  });
+  EXPECT_EQ(global_sum(wrong), 0);
+  EXPECT_GT(global_sum(compared), 0);
+}
+TEST(AdaptiveGrid, FillingWhileWritingIsWritingThenFilling2D) { filling_while_writing_is_writing_then_filling<2>(); }
+TEST(AdaptiveGrid, FillingWhileWritingIsWritingThenFilling3D) { filling_while_writing_is_writing_then_filling<3>(); }
 
 // After an adaptation the ghost rows of blocks whose neighbourhood did not change are copied
 // from the previous plan, the others resolved again: after every cycle of a moving front the
