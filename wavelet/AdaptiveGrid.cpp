@@ -1235,20 +1235,32 @@ void AdaptiveGrid<Dim>::fill_stencil_ghosts() {
 }
 
 template <int Dim>
-void AdaptiveGrid<Dim>::fill_ghost_lists(std::initializer_list<std::size_t> lists) {
-  GhostPlan& plan = *plan_;
+std::size_t AdaptiveGrid<Dim>::receive_ghost_values(GhostPlan& plan) {
+  const int F = fields();
+  std::size_t requests = 0;
+  for (std::size_t k = 0; k < plan.recv_rank.size(); ++k)
+    MPI_Irecv(plan.recv_buffer.data() + static_cast<std::size_t>(plan.recv_first[k]) * static_cast<std::size_t>(F), plan.recv_count[k] * F,
+              MPI_DOUBLE, plan.recv_rank[k], 71, comm_, &plan.requests[requests++]);
+  return requests;
+}
+
+template <int Dim>
+void AdaptiveGrid<Dim>::send_ghost_values(GhostPlan& plan, std::size_t& requests) {
   const int F = fields();
   const auto Fu = static_cast<std::size_t>(F);
-  std::size_t nreq = 0;
-  for (std::size_t k = 0; k < plan.recv_rank.size(); ++k)
-    MPI_Irecv(plan.recv_buffer.data() + static_cast<std::size_t>(plan.recv_first[k]) * Fu, plan.recv_count[k] * F,
-              MPI_DOUBLE, plan.recv_rank[k], 71, comm_, &plan.requests[nreq++]);
   for (std::size_t k = 0; k < plan.send_src.size(); ++k)
     for (std::size_t f = 0; f < Fu; ++f)
       plan.send_buffer[k * Fu + f] = data_[f][static_cast<std::size_t>(plan.send_src[k])];
   for (std::size_t k = 0; k < plan.send_rank.size(); ++k)
     MPI_Isend(plan.send_buffer.data() + static_cast<std::size_t>(plan.send_first[k]) * Fu, plan.send_count[k] * F,
-              MPI_DOUBLE, plan.send_rank[k], 71, comm_, &plan.requests[nreq++]);
+              MPI_DOUBLE, plan.send_rank[k], 71, comm_, &plan.requests[requests++]);
+}
+
+template <int Dim>
+void AdaptiveGrid<Dim>::fill_ghost_lists(std::initializer_list<std::size_t> lists) {
+  GhostPlan& plan = *plan_;
+  std::size_t nreq = receive_ghost_values(plan);
+  send_ghost_values(plan, nreq);
   // Local contributions while the messages travel (every peer's message is whole: the lists
   // share most of their remote points).
   for (const std::size_t list : lists) fill_local_ghosts(plan, list);
@@ -1285,12 +1297,7 @@ double AdaptiveGrid<Dim>::write_and_fill_stencil_ghosts(const std::function<void
       });
     }
   };
-  const int F = fields();
-  const auto Fu = static_cast<std::size_t>(F);
-  std::size_t nreq = 0;
-  for (std::size_t k = 0; k < plan.recv_rank.size(); ++k)
-    MPI_Irecv(plan.recv_buffer.data() + static_cast<std::size_t>(plan.recv_first[k]) * Fu, plan.recv_count[k] * F,
-              MPI_DOUBLE, plan.recv_rank[k], 71, comm_, &plan.requests[nreq++]);
+  std::size_t nreq = receive_ghost_values(plan);
   // Each block's ghosts right after the last block they read is written, while that block and
   // most of the others are still in cache. The writing is timed apart from the filling on the
   // cycle counter where there is one (a clock read per block would cost a few percent).
@@ -1307,12 +1314,7 @@ double AdaptiveGrid<Dim>::write_and_fill_stencil_ghosts(const std::function<void
   writing_and_filling = cycle_count() - start;
   const double write_seconds =
       writing_and_filling > 0 ? whole.seconds() * static_cast<double>(writing) / static_cast<double>(writing_and_filling) : 0.0;
-  for (std::size_t k = 0; k < plan.send_src.size(); ++k)
-    for (std::size_t f = 0; f < Fu; ++f)
-      plan.send_buffer[k * Fu + f] = data_[f][static_cast<std::size_t>(plan.send_src[k])];
-  for (std::size_t k = 0; k < plan.send_rank.size(); ++k)
-    MPI_Isend(plan.send_buffer.data() + static_cast<std::size_t>(plan.send_first[k]) * Fu, plan.send_count[k] * F,
-              MPI_DOUBLE, plan.send_rank[k], 71, comm_, &plan.requests[nreq++]);
+  send_ghost_values(plan, nreq);  // every block written
   MPI_Waitall(static_cast<int>(nreq), plan.requests.data(), MPI_STATUSES_IGNORE);
   for (const std::int32_t s : plan.fill_after_messages) fill_block(static_cast<std::size_t>(s), true);
   return write_seconds;

@@ -270,6 +270,10 @@ class AdaptiveGrid {
   /// Fills the rows of the plan's lists: 0 and 1 (fill_ghosts), 0 (fill_stencil_ghosts) or
   /// kRebuiltRows (after an adaptation).
   void fill_ghost_lists(std::initializer_list<std::size_t> lists);
+  /// A ghost fill's messages: the receives posted (returns how many requests), and the values
+  /// other ranks' rows read packed and sent (requests counts on).
+  std::size_t receive_ghost_values(GhostPlan& plan);
+  void send_ghost_values(GhostPlan& plan, std::size_t& requests);
   /// Sorts the plan's rows into copy runs, sums and remote rows, per list: 0, within the
   /// stencil reach, 1, the others, and kRebuiltRows, the rows of blocks built afresh. With the
   /// plan its blocks were reused from (and slot_now: old slot -> slot now), a reused block's

@@ -134,6 +134,30 @@ void compare_with_snapshot(const gw::AdaptiveGrid<Dim>& grid, const std::vector<
     }
 }
 
+/// The stencil-fill tests' grid: blocks of 8 on the unit box, the left half refined twice (ghosts
+/// of every kind), and their two fields: a smooth pair, and another to overwrite it with.
+template <int Dim>
+gw::AdaptiveGrid<Dim> mixed_level_grid() {
+  auto c = unit_box<Dim>(false, 0, 3);
+  c.block_size = 8;
+  gw::AdaptiveGrid<Dim> grid(c);
+  refine_left_half(grid);
+  refine_left_half(grid);
+  return grid;
+}
+template <int Dim>
+void smooth_pair(const std::array<double, Dim>& x, std::span<double> v) {
+  double r = 0;
+  for (int a = 0; a < Dim; ++a) r += std::sin(3.0 * (a + 1) * x[static_cast<std::size_t>(a)]);
+  v[0] = r;
+  v[1] = std::cos(2 * x[0]);
+}
+template <int Dim>
+void other_pair(const std::array<double, Dim>& x, std::span<double> v) {
+  v[0] = 1.0 + x[0];
+  v[1] = -3.0;
+}
+
 /// Whether array point p of a block is an interior point or a ghost within a stencil reach of
 /// `axis` layers beyond a face and `corner` along each of two axes (set_stencil_reach).
 template <int Dim>
@@ -362,29 +386,16 @@ TEST(AdaptiveGrid, ReconstructionErrorBoundedByEpsilon3D) {
 // ghost point keeps what it held, on a mixed-level grid with ghosts of every kind.
 template <int Dim>
 void stencil_ghosts_are_those_of_a_full_fill() {
-  auto c = unit_box<Dim>(false, 0, 3);
-  c.block_size = 8;
-  gw::AdaptiveGrid<Dim> grid(c);
-  refine_left_half(grid);
-  refine_left_half(grid);
-  auto field = [](const std::array<double, Dim>& x, std::span<double> v) {
-    double r = 0;
-    for (int a = 0; a < Dim; ++a) r += std::sin(3.0 * (a + 1) * x[static_cast<std::size_t>(a)]);
-    v[0] = r;
-    v[1] = std::cos(2 * x[0]);
-  };
-  grid.sample(field);
+  auto grid = mixed_level_grid<Dim>();
+  grid.sample(smooth_pair<Dim>);
   grid.fill_ghosts();
   const auto full = snapshot(grid);
   // Every ghost and every intermediate point of the separable prolongation (stored beside the
   // blocks) then holds another field's values: a stencil fill that read one it does not fill
   // would show it.
-  grid.sample([](const std::array<double, Dim>& x, std::span<double> v) {
-    v[0] = 1.0 + x[0];
-    v[1] = -3.0;
-  });
+  grid.sample(other_pair<Dim>);
   grid.fill_ghosts();
-  grid.sample(field);
+  grid.sample(smooth_pair<Dim>);
   constexpr int kAxis = 2, kCorner = 1;
   grid.set_stencil_reach(kAxis, kCorner);
   const auto shape = grid.layout().shape();
@@ -434,25 +445,13 @@ TEST(AdaptiveGrid, StencilGhostsAreThoseOfAFullFill3D) { stencil_ghosts_are_thos
 // filled before one of its sources was written would show.
 template <int Dim>
 void filling_while_writing_is_writing_then_filling() {
-  auto c = unit_box<Dim>(false, 0, 3);
-  c.block_size = 8;
-  gw::AdaptiveGrid<Dim> grid(c);
-  refine_left_half(grid);
-  refine_left_half(grid);
+  auto grid = mixed_level_grid<Dim>();
   constexpr int kAxis = 2, kCorner = 1;
   grid.set_stencil_reach(kAxis, kCorner);
-  grid.sample([](const std::array<double, Dim>& x, std::span<double> v) {
-    double r = 0;
-    for (int a = 0; a < Dim; ++a) r += std::sin(3.0 * (a + 1) * x[static_cast<std::size_t>(a)]);
-    v[0] = r;
-    v[1] = std::cos(2 * x[0]);
-  });
+  grid.sample(smooth_pair<Dim>);
   grid.fill_stencil_ghosts();
   const auto reference = snapshot(grid);
-  grid.sample([](const std::array<double, Dim>& x, std::span<double> v) {
-    v[0] = 1.0 + x[0];
-    v[1] = -3.0;
-  });
+  grid.sample(other_pair<Dim>);
   grid.fill_ghosts();
   const auto shape = grid.layout().shape();
   const int g = grid.layout().ghosts, bs = grid.config().block_size;
