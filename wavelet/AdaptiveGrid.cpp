@@ -1,8 +1,8 @@
 #include "wavelet/AdaptiveGrid.hpp"
 
 #include <algorithm>
-#include <chrono>
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -36,8 +36,6 @@ struct Term {
 /// interior along an axis: 0 inside, k in the k-th ghost layer.
 constexpr int ghost_depth(int x, int bs, int g) { return x < g ? g - x : x >= g + bs ? x - g - bs + 1 : 0; }
 
-/// Calls f(std::integral_constant<int, k>, fields) on the field arrays in groups of k: the
-/// fluid's 4 (2D) or 5 (3D) conserved fields together, other counts one by one.
 /// A cheap monotone tick count, to time parts of a loop apart: the x86 time-stamp counter
 /// (constant rate on current processors), else steady_clock's.
 inline std::uint64_t cycle_count() {
@@ -48,6 +46,8 @@ inline std::uint64_t cycle_count() {
 #endif
 }
 
+/// Calls f(std::integral_constant<int, k>, fields) on the field arrays in groups of k: the
+/// fluid's 4 (2D) or 5 (3D) conserved fields together, other counts one by one.
 template <class F>
 void for_field_groups(std::vector<std::vector<double>>& data, F&& f) {
   switch (data.size()) {
@@ -391,10 +391,7 @@ struct PointResolver {
       }
       if (!same) continue;
       if (k > 0) std::rotate(recent.begin(), recent.begin() + k, recent.begin() + k + 1);  // to the front
-      last_level = recent[0].level;
-      last_coords = recent[0].coords;
-      last_leaf = recent[0].leaf;
-      return last_leaf;
+      return recent[0].leaf;
     }
     for (int step = 0; step <= 2 * config.max_level + 1; ++step) {
       const int l = level + ((step % 2 == 0) ? step / 2 : -(step + 1) / 2);
@@ -406,9 +403,6 @@ struct PointResolver {
         c[au] = static_cast<std::uint32_t>(at / config.block_size);
       }
       if (const auto found = forest.find(BlockKey<Dim>::from_coords(l, c))) {
-        last_level = l;
-        last_coords = c;
-        last_leaf = *found;
         Hit hit{l, c, {}, *found};
         for (int a = 0; a < Dim; ++a)
           hit.first[static_cast<std::size_t>(a)] = static_cast<GlobalIndex64>(c[static_cast<std::size_t>(a)]) * config.block_size;
@@ -428,15 +422,11 @@ struct PointResolver {
     std::array<int, Dim> i{};
     for (int a = 0; a < Dim; ++a) {
       const auto au = static_cast<std::size_t>(a);
-      const GlobalIndex64 fine = idx[au] << (last_level - level);
-      i[au] = static_cast<int>(fine - static_cast<GlobalIndex64>(last_coords[au]) * config.block_size);
+      const GlobalIndex64 fine = idx[au] << (last().level - level);
+      i[au] = static_cast<int>(fine - static_cast<GlobalIndex64>(last().coords[au]) * config.block_size);
     }
     return i;
   }
-  /// The leaf the last lookup found: its level, coordinates and index.
-  mutable int last_level = -1;
-  mutable std::array<std::uint32_t, Dim> last_coords{};
-  mutable std::size_t last_leaf = 0;
   /// The last few leaves found, the one last found or hit first: level, coordinates, first
   /// point (coordinates * block size) and index.
   struct Hit {
@@ -447,12 +437,13 @@ struct PointResolver {
   };
   mutable std::array<Hit, 4> recent{};
   mutable int remembered = 0;
+  /// The leaf the last lookup found or hit (after a lookup).
+  const Hit& last() const { return recent[0]; }
   /// When set, every leaf found by a lookup (not among the remembered hits) is appended: with
   /// the hits forgotten before each block, these are all the leaves its ghosts read (but the
   /// same-level ones build_ghost_plan finds per region, which it appends itself).
   std::vector<std::size_t>* found_leaves = nullptr;
   void forget() const {
-    last_level = -1;
     remembered = 0;
   }
 
@@ -462,7 +453,7 @@ struct PointResolver {
                std::vector<Term>& out) const {
     const std::size_t leaf = leaf_containing(level, idx);
     // leaf_containing leaves the leaf's level and coordinates in last_*: no de-interleaving.
-    const int leaf_level = last_level;
+    const int leaf_level = last().level;
     if (leaf_level >= level) {
       const auto i = injected(level, idx);
       std::int64_t point = 0;
@@ -678,7 +669,7 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
       bool own = at[A] >= 0 && at[A] < bs + 2 * g && depth(at[A]) <= depth(i[A]);
       if (own) {
         resolver.leaf_containing(level, point);
-        own = resolver.last_level < level;
+        own = resolver.last().level < level;
       }
       if (own) {
         plan.local_src.push_back(static_cast<std::int64_t>(slot * block_volume_) + shape.index(at));
@@ -845,14 +836,14 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
         end_row();
         continue;
       }
-      // The lookup leaves the containing leaf's level in last_level (and the leaf remembered, so
+      // The lookup leaves the containing leaf in last() (and remembered, so
       // resolve below finds it again at once).
       resolver.leaf_containing(key.level, idx);
-      const int source_level = resolver.last_level;
+      const int source_level = resolver.last().level;
       plan.kind[at] = static_cast<std::uint8_t>(source_level == key.level  ? GhostKind::kSameLevel
                                                 : source_level > key.level ? GhostKind::kFromFiner
                                                                            : GhostKind::kFromCoarser);
-      const std::size_t source = resolver.last_leaf;
+      const std::size_t source = resolver.last().leaf;
       if (source_level >= key.level && source >= first_leaf_ && source < first_leaf_ + local_keys_.size()) {
         // A same-level or finer leaf of this rank (most ghosts): the one term resolve() would
         // give, its point injected (weight 1), without the term list.
@@ -1302,7 +1293,7 @@ double AdaptiveGrid<Dim>::write_and_fill_stencil_ghosts(const std::function<void
   // most of the others are still in cache. The writing is timed apart from the filling on the
   // cycle counter where there is one (a clock read per block would cost a few percent).
   const Stopwatch whole;
-  std::uint64_t writing = 0, writing_and_filling = 0;
+  std::uint64_t writing = 0;
   const std::uint64_t start = cycle_count();
   for (std::size_t t = 0; t < n; ++t) {
     const std::uint64_t before = cycle_count();
@@ -1311,7 +1302,7 @@ double AdaptiveGrid<Dim>::write_and_fill_stencil_ghosts(const std::function<void
     for (auto k = plan.fill_when_begin[t]; k < plan.fill_when_begin[t + 1]; ++k)
       fill_block(static_cast<std::size_t>(plan.fill_when_written[static_cast<std::size_t>(k)]), false);
   }
-  writing_and_filling = cycle_count() - start;
+  const std::uint64_t writing_and_filling = cycle_count() - start;
   const double write_seconds =
       writing_and_filling > 0 ? whole.seconds() * static_cast<double>(writing) / static_cast<double>(writing_and_filling) : 0.0;
   send_ghost_values(plan, nreq);  // every block written
@@ -1354,76 +1345,11 @@ GhostPlanStats AdaptiveGrid<Dim>::ghost_plan_stats() const {
 
 template <int Dim>
 const double* AdaptiveGrid<Dim>::predict_array(const double* u, const DetailStencils& stencils) const {
-  // d = u - P u_{j-1} in separable form: predict along x on every line of the array (ghost lines
-  // included), then along y from those values, then along z. These are the products and sums of
-  // tensor_sum (x innermost, each partial sum started at 0 and accumulated in stencil order), so
-  // every coefficient is bitwise the point-by-point one, but a tensor row is summed once per line
-  // instead of once per point that reads it. The general path, for block_details (all the
-  // coefficients); tagging needs only their maxima and takes DetailKernels.cpp, which the test
-  // LargestDetailsMatchBlockDetails holds to this path bitwise.
-  const auto& st = stencils.axis;
-  const int bs = config_.block_size, g = layout_.ghosts, width = bs + 2 * g;
-  const auto ubs = static_cast<std::size_t>(bs), uw = static_cast<std::size_t>(width);
-  // stage[a]: axes 0..a predicted (extent bs), the others still whole array lines (extent width).
-  std::size_t lines = 1;
-  for (int a = 1; a < Dim; ++a) lines *= uw;
-  // Later stages read only lines at even global indices (an odd point's stencil holds evens,
-  // an even point reads itself); block starts are even, so array index r is even iff r + g is.
-  // Lines at odd indices on any axis beyond x are skipped here and along y (their values are
-  // never read).
-  auto odd_line = [&](std::size_t line, int first_axis) {
-    for (int a = first_axis; a < Dim; ++a) {
-      std::size_t r = line;
-      for (int b = 1; b < a; ++b) r /= uw;
-      if ((r % uw + static_cast<std::size_t>(g)) % 2 != 0) return true;
-    }
-    return false;
-  };
-  std::vector<double>& along_x = stage_[0];
-  along_x.resize(lines * ubs);  // the lines read later are written below
-  for (std::size_t line = 0; line < lines; ++line) {
-    if (odd_line(line, 1)) continue;
-    const double* row = u + line * uw;
-    double* to = along_x.data() + line * ubs;
-    // Even and odd points alternate (block starts are even): a copy at even points, and at odd
-    // ones a sum of `order` terms, a fixed count the compiler unrolls.
-    auto predict_row = [&]<int kOrder>() {
-      for (std::size_t i = 0; i < ubs; i += 2) to[i] = 0.0 + st[0][i].w[0] * row[st[0][i].at[0]];
-      for (std::size_t i = 1; i < ubs; i += 2) {
-        const AxisStencil& sx = st[0][i];
-        double sum = 0;
-        for (std::size_t k = 0; k < kOrder; ++k) sum += sx.w[k] * row[sx.at[k]];
-        to[i] = sum;
-      }
-    };
-    if (config_.order == 4) predict_row.template operator()<4>();
-    else predict_row.template operator()<6>();
-  }
-  const double* predicted = along_x.data();
-  std::size_t done = ubs;  // values per line of the predicted axes
-  for (int a = 1; a < Dim; ++a) {
-    // Axis a: lines of `done` contiguous values, `width` of them per outer index.
-    const auto au = static_cast<std::size_t>(a);
-    std::size_t outer = 1;
-    for (int b = a + 1; b < Dim; ++b) outer *= uw;
-    std::vector<double>& next = stage_[au];
-    next.assign(outer * ubs * done, 0.0);
-    for (std::size_t o = 0; o < outer; ++o) {
-      if (a + 1 < Dim && odd_line(o * uw, a + 1)) continue;  // o: the lines of axes a+1..
-      for (std::size_t j = 0; j < ubs; ++j) {
-        const AxisStencil& sa = st[au][j];
-        double* to = next.data() + (o * ubs + j) * done;
-        for (int k = 0; k < sa.size; ++k) {
-          const double w = sa.w[static_cast<std::size_t>(k)];
-          const double* from = predicted + (o * uw + static_cast<std::size_t>(sa.at[static_cast<std::size_t>(k)])) * done;
-          for (std::size_t m = 0; m < done; ++m) to[m] += w * from[m];
-        }
-      }
-    }
-    predicted = next.data();
-    done *= ubs;
-  }
-  return predicted;
+  // d = u - P u_{j-1} in separable form, every coefficient bitwise the point-by-point one. The
+  // general path, for block_details (all the coefficients); tagging needs only their maxima and
+  // takes DetailKernels.cpp, which the test LargestDetailsMatchBlockDetails holds to this path
+  // bitwise.
+  return separable_tensor_sums<Dim>(u, config_.block_size + 2 * layout_.ghosts, stencils.axis, config_.block_size, stage_);
 }
 
 template <int Dim>
@@ -1826,8 +1752,6 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_with_tags(std::span<const AdaptTag> tags) {
   const int bs = config_.block_size, g = layout_.ghosts;
   const int F = fields();
   const auto shape = layout_.shape();
-  std::array<std::ptrdiff_t, Dim> stride{};
-  for (int a = 0; a < Dim; ++a) stride[static_cast<std::size_t>(a)] = shape.stride(a);
   const auto P = static_cast<std::size_t>(ranks_);
   std::vector<std::vector<std::int64_t>> head(P);
   std::vector<std::vector<double>> body(P);
@@ -1851,7 +1775,8 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_with_tags(std::span<const AdaptTag> tags) {
       }
     }
   };
-  std::vector<double> values, scratch;  // one new block's, and separable_tensor_sums'
+  std::vector<double> values;  // one new block's
+  std::array<std::vector<double>, Dim> stages;  // separable_tensor_sums' scratch
   for (std::size_t s = 0; s < old_keys.size(); ++s) {
     const Key key = old_keys[s];
     if (const auto leaf = forest_.find(key)) {
@@ -1876,9 +1801,11 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_with_tags(std::span<const AdaptTag> tags) {
         const auto who = static_cast<std::size_t>(owner(child_leaf));
         child_stencils<Dim>(key, k, config_, g, st);
         values.resize(static_cast<std::size_t>(F) * interior_points_);
-        for (int f = 0; f < F; ++f)
-          separable_tensor_sums<Dim>(old_data[static_cast<std::size_t>(f)].data() + s * block_volume_, stride, st, bs,
-                                     scratch, values.data() + static_cast<std::size_t>(f) * interior_points_);
+        for (int f = 0; f < F; ++f) {
+          const double* child = separable_tensor_sums<Dim>(old_data[static_cast<std::size_t>(f)].data() + s * block_volume_,
+                                                           bs + 2 * g, st, bs, stages);
+          std::copy_n(child, interior_points_, values.begin() + static_cast<std::ptrdiff_t>(static_cast<std::size_t>(f) * interior_points_));
+        }
         const double* from = values.data();
         if (static_cast<int>(who) == rank_) {
           write_new_block(child_leaf - first_leaf_, -1, from);

@@ -9,6 +9,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <span>
+#include <stdexcept>
 #include <utility>
 #include <vector>
 
@@ -95,75 +96,94 @@ double tensor_sum(const double* u, const std::array<std::ptrdiff_t, Dim>& stride
   return sum;
 }
 
-/// tensor_sum at every interior point of a block (bs per axis, interior order, x fastest) into
-/// out, in separable form: the x sums once per array line the other axes read, then across y
-/// (and z) from those. Every partial sum is tensor_sum's (started at 0, accumulated in stencil
-/// order), so each value is bitwise tensor_sum's; the x sums are not repeated per point (a
-/// child of a refined block costs 2 x 6 terms a point instead of up to 6 x 6). scratch: any
-/// size, resized here.
+/// tensor_sum at every interior point of a block array (bs interior points and `width` in all
+/// per axis, strides powers of width), in separable form: along x on every array line the
+/// other axes' stencils read, then along y from those sums, then along z. Each partial sum is
+/// tensor_sum's (started at 0, accumulated in stencil order), so every value is bitwise
+/// tensor_sum's, but a line's sum is formed once instead of once per point that reads it (a
+/// child of a refined block: 2 x 6 terms a point instead of up to 6 x 6). stage: scratch, one
+/// buffer per axis. Returns the values, bs^Dim in interior order (x fastest), in stage[Dim - 1].
 template <int Dim>
-void separable_tensor_sums(const double* u, const std::array<std::ptrdiff_t, Dim>& stride,
-                           const std::array<std::array<AxisStencil, kMaxBlockSize>, Dim>& st, int bs,
-                           std::vector<double>& scratch, double* out) {
-  const auto ubs = static_cast<std::size_t>(bs);
-  auto line_sum = [&](const double* row, std::size_t i) {
-    const AxisStencil& x = st[0][i];
-    double line = 0;
-    for (int p = 0; p < x.size; ++p) line += x.w[p] * row[x.at[p]];
-    return line;
+const double* separable_tensor_sums(const double* u, int width,
+                                    const std::array<std::array<AxisStencil, kMaxBlockSize>, Dim>& st, int bs,
+                                    std::array<std::vector<double>, Dim>& stage) {
+  const auto ubs = static_cast<std::size_t>(bs), uw = static_cast<std::size_t>(width);
+  // Per axis beyond x, the array indices its stencils read (prediction reads only even ones:
+  // the other lines are skipped).
+  constexpr std::size_t kMaxWidth = 4 * kMaxBlockSize;  // an array reaches less than a block beyond
+  if (uw > kMaxWidth) throw std::logic_error("separable_tensor_sums: block array too wide");
+  std::array<std::array<char, kMaxWidth>, Dim> read;
+  for (std::size_t a = 1; a < static_cast<std::size_t>(Dim); ++a) {
+    read[a].fill(0);
+    for (std::size_t j = 0; j < ubs; ++j)
+      for (int k = 0; k < st[a][j].size; ++k) read[a][static_cast<std::size_t>(st[a][j].at[k])] = 1;
+  }
+  // Whether line `line` (its indices along axes first_axis.., width each) is read.
+  auto line_read = [&](std::size_t line, std::size_t first_axis) {
+    for (std::size_t a = first_axis; a < static_cast<std::size_t>(Dim); ++a, line /= uw)
+      if (!read[a][line % uw]) return false;
+    return true;
   };
-  if constexpr (Dim == 1) {
-    for (std::size_t i = 0; i < ubs; ++i) out[i] = line_sum(u, i);
-  } else {
-    // The array rows (y) and planes (z) the stencils read: a contiguous range each.
-    auto reach = [&](int a) {
-      int lo = st[static_cast<std::size_t>(a)][0].at[0], hi = lo;
-      for (std::size_t j = 0; j < ubs; ++j)
-        for (int q = 0; q < st[static_cast<std::size_t>(a)][j].size; ++q) {
-          lo = std::min(lo, st[static_cast<std::size_t>(a)][j].at[q]);
-          hi = std::max(hi, st[static_cast<std::size_t>(a)][j].at[q]);
-        }
-      return std::pair{lo, hi - lo + 1};
-    };
-    const auto [y0, ny] = reach(1);
-    const auto [z0, nz] = Dim == 3 ? reach(2) : std::pair{0, 1};
-    const auto rows = static_cast<std::size_t>(ny), planes = static_cast<std::size_t>(nz);
-    // lines[(z * rows + y) * bs + i]: the x sums; then (3D) across y per plane.
-    scratch.resize(planes * rows * ubs + (Dim == 3 ? planes * ubs * ubs : 0));
-    double* lines = scratch.data();
-    for (std::size_t z = 0; z < planes; ++z)
-      for (std::size_t y = 0; y < rows; ++y) {
-        const double* row = u + (static_cast<std::ptrdiff_t>(y) + y0) * stride[1];
-        if constexpr (Dim == 3) row += (static_cast<std::ptrdiff_t>(z) + z0) * stride[2];
-        for (std::size_t i = 0; i < ubs; ++i) lines[(z * rows + y) * ubs + i] = line_sum(row, i);
-      }
-    // Across y: plane z's sums at (j, i) into `to` (bs x bs).
-    auto across_y = [&](std::size_t z, double* to) {
-      for (std::size_t j = 0; j < ubs; ++j) {
-        const AxisStencil& w = st[1][j];
-        for (std::size_t i = 0; i < ubs; ++i) {
-          double sum = 0;
-          for (int q = 0; q < w.size; ++q)
-            sum += w.w[q] * lines[(z * rows + static_cast<std::size_t>(w.at[q] - y0)) * ubs + i];
-          to[j * ubs + i] = sum;
-        }
+  // stage[a]: axes 0..a summed (extent bs), the others still whole array lines (extent width).
+  std::size_t lines = 1;
+  for (int a = 1; a < Dim; ++a) lines *= uw;
+  stage[0].resize(lines * ubs);  // the lines read later are written below
+  // 4 or 6 where x's rows alternate between one term (even i) and that many (odd i), else 0.
+  int odd_size = ubs > 1 ? st[0][1].size : 0;
+  for (std::size_t i = 0; i < ubs; ++i)
+    if (st[0][i].size != (i % 2 == 0 ? 1 : odd_size)) odd_size = 0;
+  for (std::size_t line = 0; line < lines; ++line) {
+    if (!line_read(line, 1)) continue;
+    const double* row = u + line * uw;
+    double* to = stage[0].data() + line * ubs;
+    // Prediction rows alternate: a copy at even points, `order` terms at odd ones (fixed
+    // counts the compiler unrolls); any other pattern term by term. The same sums either way.
+    auto odd_rows = [&]<int kOrder>() {
+      for (std::size_t i = 0; i < ubs; i += 2) to[i] = 0.0 + st[0][i].w[0] * row[st[0][i].at[0]];
+      for (std::size_t i = 1; i < ubs; i += 2) {
+        const AxisStencil& sx = st[0][i];
+        double sum = 0;
+        for (int k = 0; k < kOrder; ++k) sum += sx.w[k] * row[sx.at[k]];
+        to[i] = sum;
       }
     };
-    if constexpr (Dim == 2) {
-      across_y(0, out);
+    if (odd_size == 4) {
+      odd_rows.template operator()<4>();
+    } else if (odd_size == 6) {
+      odd_rows.template operator()<6>();
     } else {
-      double* across = lines + planes * rows * ubs;
-      for (std::size_t z = 0; z < planes; ++z) across_y(z, across + z * ubs * ubs);
-      for (std::size_t k = 0; k < ubs; ++k) {
-        const AxisStencil& w = st[2][k];
-        for (std::size_t p = 0; p < ubs * ubs; ++p) {
-          double sum = 0;
-          for (int r = 0; r < w.size; ++r) sum += w.w[r] * across[static_cast<std::size_t>(w.at[r] - z0) * ubs * ubs + p];
-          out[k * ubs * ubs + p] = sum;
-        }
+      for (std::size_t i = 0; i < ubs; ++i) {
+        const AxisStencil& sx = st[0][i];
+        double sum = 0;
+        for (int k = 0; k < sx.size; ++k) sum += sx.w[k] * row[sx.at[k]];
+        to[i] = sum;
       }
     }
   }
+  const double* summed = stage[0].data();
+  std::size_t done = ubs;  // values per line of the summed axes
+  for (std::size_t a = 1; a < static_cast<std::size_t>(Dim); ++a) {
+    // Axis a: lines of `done` contiguous values, `width` of them per outer index.
+    std::size_t outer = 1;
+    for (std::size_t b = a + 1; b < static_cast<std::size_t>(Dim); ++b) outer *= uw;
+    std::vector<double>& next = stage[a];
+    next.assign(outer * ubs * done, 0.0);
+    for (std::size_t o = 0; o < outer; ++o) {
+      if (a + 1 < static_cast<std::size_t>(Dim) && !line_read(o, a + 1)) continue;  // o: the lines of axes a+1..
+      for (std::size_t j = 0; j < ubs; ++j) {
+        const AxisStencil& sa = st[a][j];
+        double* to = next.data() + (o * ubs + j) * done;
+        for (int k = 0; k < sa.size; ++k) {
+          const double w = sa.w[k];
+          const double* from = summed + (o * uw + static_cast<std::size_t>(sa.at[k])) * done;
+          for (std::size_t m = 0; m < done; ++m) to[m] += w * from[m];
+        }
+      }
+    }
+    summed = next.data();
+    done *= ubs;
+  }
+  return summed;
 }
 
 /// Per-axis prediction stencils of a block's own points from its even (level j-1) points,

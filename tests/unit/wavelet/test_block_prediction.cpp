@@ -4,7 +4,6 @@
 #include <gtest/gtest.h>
 
 #include <array>
-#include <cmath>
 #include <cstring>
 #include <random>
 #include <vector>
@@ -39,7 +38,7 @@ void separable_sums_are_tensor_sums(int order, int block_size, bool periodic) {
   std::uniform_real_distribution<double> value(-1, 1);
   std::vector<double> parent(static_cast<std::size_t>(volume));
   for (double& v : parent) v = value(rng);
-  std::vector<double> scratch, separable(static_cast<std::size_t>(std::pow(block_size, Dim)));
+  std::array<std::vector<double>, Dim> stages;
   std::array<std::array<gw::AxisStencil, gw::kMaxBlockSize>, Dim> st;
   // Level-1 parents: every block of a 4^Dim grid of them, so corners, edges and interiors.
   for (std::uint32_t code = 0; code < (1u << (2 * Dim)); ++code) {
@@ -48,7 +47,7 @@ void separable_sums_are_tensor_sums(int order, int block_size, bool periodic) {
     const auto key = gw::BlockKey<Dim>::from_coords(1, coords);
     for (int child = 0; child < (1 << Dim); ++child) {
       gp::child_stencils<Dim>(key, child, c, g, st);
-      gp::separable_tensor_sums<Dim>(parent.data(), stride, st, block_size, scratch, separable.data());
+      const double* separable = gp::separable_tensor_sums<Dim>(parent.data(), width, st, block_size, stages);
       std::size_t p = 0;
       gp::for_each_interior<Dim>(block_size, 0, gw::ArrayShape<Dim>{}, [&](std::size_t, const std::array<int, Dim>& i,
                                                                              std::ptrdiff_t) {
