@@ -173,10 +173,23 @@ const double* separable_tensor_sums(const double* u, int width,
       for (std::size_t j = 0; j < ubs; ++j) {
         const AxisStencil& sa = st[a][j];
         double* to = next.data() + (o * ubs + j) * done;
-        for (int k = 0; k < sa.size; ++k) {
-          const double w = sa.w[k];
-          const double* from = summed + (o * uw + static_cast<std::size_t>(sa.at[k])) * done;
-          for (std::size_t m = 0; m < done; ++m) to[m] += w * from[m];
+        const double* from = summed + o * uw * done;
+        // Each value's terms summed in a register, in stencil order (accumulating line by line
+        // in `to` would store and reload it once per term); fixed counts for the prediction's
+        // rows (a copy, or 4 or 6 terms) unroll.
+        auto terms = [&]<int kTerms>(int size) {
+          const int n = kTerms > 0 ? kTerms : size;
+          for (std::size_t m = 0; m < done; ++m) {
+            double sum = 0;
+            for (int k = 0; k < n; ++k) sum += sa.w[k] * from[static_cast<std::size_t>(sa.at[k]) * done + m];
+            to[m] = sum;
+          }
+        };
+        switch (sa.size) {
+          case 1: terms.template operator()<1>(1); break;
+          case 4: terms.template operator()<4>(4); break;
+          case 6: terms.template operator()<6>(6); break;
+          default: terms.template operator()<0>(sa.size);
         }
       }
     }

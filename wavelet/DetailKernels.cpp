@@ -50,25 +50,24 @@ std::pair<double, double> maxima(const double* u, const DetailRows<Dim>& rows, d
   const auto& near = rows.near;
   std::array<double, kMaxBlockSize> all{}, inner{}, row_mask{};
   for (std::size_t i = 0; i < ubs; ++i) row_mask[i] = near[0][i] ? 1.0 : 0.0;
-  // The maxima of |u - P u| along one line of bs values (lanes kept apart, selects: packed
+  // Folds one detail |u - P u| at lane i into the maxima (lanes kept apart, selects: packed
   // maxima; NaNs ignored as std::max over the coefficients would). The near maximum leaves out
   // lines and lanes whose rows are not all near (selects, so an unread NaN cannot get through).
-  auto accumulate = [&](const double* u_line, const double* p, bool near_line) {
-    for (std::size_t i = 0; i < ubs; ++i) {
-      const double d = std::abs(u_line[i] - p[i]);
-      all[i] = d > all[i] ? d : all[i];
-      const double dn = near_line && row_mask[i] != 0.0 ? d : 0.0;
-      inner[i] = dn > inner[i] ? dn : inner[i];
-    }
+  auto fold = [&](std::size_t i, double u_value, double predicted, bool near_line) {
+    const double d = std::abs(u_value - predicted);
+    all[i] = d > all[i] ? d : all[i];
+    const double dn = near_line && row_mask[i] != 0.0 ? d : 0.0;
+    inner[i] = dn > inner[i] ? dn : inner[i];
   };
   auto predict_line = [&](const double* row, double* to) {
     const double* at = row + first;
+    // Evens are copies: selected in the same vector, not stored over it (a narrower store over
+    // a wider one stalls the next stage's wide reads of it).
     for (std::size_t i = 0; i < ubs; ++i) {
       double sum = 0;
       for (std::size_t m = 0; m < w.size(); ++m) sum += w[m] * at[i + 2 * m];
-      to[i] = sum;
+      to[i] = i % 2 == 0 ? 0.0 + row[ug + i] : sum;
     }
-    for (std::size_t i = 0; i < ubs; i += 2) to[i] = 0.0 + row[ug + i];
     for (std::size_t k = 0; k < one_sided_count; ++k) {
       const AxisStencil& st = rows.axis[0][one_sided[k]];
       double sum = 0;
@@ -80,7 +79,7 @@ std::pair<double, double> maxima(const double* u, const DetailRows<Dim>& rows, d
   auto even_line = [&](std::size_t r) { return (r + ug) % 2 == 0; };
   if constexpr (Dim == 1) {
     predict_line(u, along_x);
-    accumulate(u + ug, along_x, true);
+    for (std::size_t i = 0; i < ubs; ++i) fold(i, u[ug + i], along_x[i], true);
   } else {
     std::size_t lines = 1;
     for (int a = 1; a < Dim; ++a) lines *= uw;
@@ -89,35 +88,40 @@ std::pair<double, double> maxima(const double* u, const DetailRows<Dim>& rows, d
       if (Dim == 3 && !even_line(line / uw)) continue;
       predict_line(u + line * uw, along_x + line * ubs);
     }
-    // One line of `done` values along axis a at index j, from the previous stage's lines of
-    // `done` values (`from`: array index 0 along that axis).
-    auto predict_across = [&](std::size_t a, const double* from, std::size_t j, std::size_t done, double* to) {
+    // `count` values along axis a at index j, from the previous stage's lines (`from`: array
+    // index 0 along that axis, `stride` values apart), each handed to sink(m, value) as it is
+    // computed: the last stage folds them straight into the maxima, without storing a line that
+    // would be read back at once (a store-forwarding stall per vector).
+    auto predict_across = [&](std::size_t a, const double* from, std::size_t j, std::size_t stride, std::size_t count,
+                              auto&& sink) {
       if (!rows.centred[a][j]) {
         const AxisStencil& st = rows.axis[a][j];
-        for (std::size_t m = 0; m < done; ++m) {
+        for (std::size_t m = 0; m < count; ++m) {
           double sum = 0;
           for (int k = 0; k < st.size; ++k)
-            sum += st.w[static_cast<std::size_t>(k)] * from[static_cast<std::size_t>(st.at[static_cast<std::size_t>(k)]) * done + m];
-          to[m] = sum;
+            sum += st.w[static_cast<std::size_t>(k)] * from[static_cast<std::size_t>(st.at[static_cast<std::size_t>(k)]) * stride + m];
+          sink(m, sum);
         }
         return;
       }
       if (j % 2 == 0) {
-        const double* src = from + (j + ug) * done;
-        for (std::size_t m = 0; m < done; ++m) to[m] = 0.0 + src[m];
+        const double* src = from + (j + ug) * stride;
+        for (std::size_t m = 0; m < count; ++m) sink(m, 0.0 + src[m]);
         return;
       }
-      const double* src = from + (first + j) * done;
-      for (std::size_t m = 0; m < done; ++m) {
+      const double* src = from + (first + j) * stride;
+      for (std::size_t m = 0; m < count; ++m) {
         double sum = 0;
-        for (std::size_t k = 0; k < w.size(); ++k) sum += w[k] * src[2 * k * done + m];
-        to[m] = sum;
+        for (std::size_t k = 0; k < w.size(); ++k) sum += w[k] * src[2 * k * stride + m];
+        sink(m, sum);
       }
     };
     if constexpr (Dim == 2) {
+      (void)last;
       for (std::size_t j = 0; j < ubs; ++j) {
-        predict_across(1, along_x, j, ubs, last);
-        accumulate(u + (j + ug) * uw + ug, last, near[1][j]);
+        const double* u_line = u + (j + ug) * uw + ug;
+        const bool near_line = near[1][j];
+        predict_across(1, along_x, j, ubs, ubs, [&](std::size_t i, double value) { fold(i, u_line[i], value, near_line); });
       }
     } else {
       // Along y on the x-predicted lines of even z (planes of bs^2 after `last`'s first bs^2),
@@ -125,14 +129,18 @@ std::pair<double, double> maxima(const double* u, const DetailRows<Dim>& rows, d
       double* along_y = last + ubs * ubs;
       for (std::size_t z = 0; z < uw; ++z) {
         if (!even_line(z)) continue;
-        for (std::size_t j = 0; j < ubs; ++j)
-          predict_across(1, along_x + z * uw * ubs, j, ubs, along_y + (z * ubs + j) * ubs);
+        for (std::size_t j = 0; j < ubs; ++j) {
+          double* to = along_y + (z * ubs + j) * ubs;
+          predict_across(1, along_x + z * uw * ubs, j, ubs, ubs, [&](std::size_t m, double value) { to[m] = value; });
+        }
       }
-      for (std::size_t k = 0; k < ubs; ++k) {
-        predict_across(2, along_y, k, ubs * ubs, last);
-        for (std::size_t j = 0; j < ubs; ++j)
-          accumulate(u + ((k + ug) * uw + j + ug) * uw + ug, last + j * ubs, near[1][j] && near[2][k]);
-      }
+      for (std::size_t k = 0; k < ubs; ++k)
+        for (std::size_t j = 0; j < ubs; ++j) {
+          const double* u_line = u + ((k + ug) * uw + j + ug) * uw + ug;
+          const bool near_line = near[1][j] && near[2][k];
+          predict_across(2, along_y + j * ubs, k, ubs * ubs, ubs,
+                         [&](std::size_t i, double value) { fold(i, u_line[i], value, near_line); });
+        }
     }
   }
   double largest = 0, largest_near = 0;
