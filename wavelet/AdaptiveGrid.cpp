@@ -253,6 +253,7 @@ AdaptiveGrid<Dim>& AdaptiveGrid<Dim>::operator=(const AdaptiveGrid& o) {
   slot_detail_stencils_.clear();
   bound_rest_.clear();
   first_field_.clear();
+  fields_computed_.clear();
   parent_sources_.clear();
   return *this;
 }
@@ -268,6 +269,7 @@ void AdaptiveGrid<Dim>::refresh_partition() {
   slot_detail_stencils_.clear();  // the slots hold other blocks now
   bound_rest_.clear();
   first_field_.clear();
+  fields_computed_.clear();
   local_keys_.assign(leaves.begin() + static_cast<std::ptrdiff_t>(first_leaf_),
                      leaves.begin() + static_cast<std::ptrdiff_t>(offsets_[static_cast<std::size_t>(rank_) + 1]));
 }
@@ -1389,10 +1391,12 @@ std::pair<double, double> AdaptiveGrid<Dim>::detail_maxima(const double* u, cons
 
 template <int Dim>
 std::vector<double> AdaptiveGrid<Dim>::field_scales(const ThresholdConfig& th,
-                                                    std::vector<std::pair<double, double>>* ranges) const {
+                                                    std::vector<std::pair<double, double>>* ranges,
+                                                    std::span<const char> tested) const {
   const auto F = static_cast<std::size_t>(fields());
   std::vector<double> scale(F, 1.0);
   if (ranges) ranges->clear();
+  maxima_ahead_.clear();
   if (th.normalisation == Normalisation::kAbsolute) return scale;
   std::vector<double> local(F, 0.0), global(F, 0.0);
   // Max is exact: any order gives the same. The same pass gives each block's range of values
@@ -1401,10 +1405,17 @@ std::vector<double> AdaptiveGrid<Dim>::field_scales(const ThresholdConfig& th,
   // of a 16^2 block array is ghosts), where the bound rests (block_significance) their range is
   // NaN.
   if (ranges) ranges->assign(F * local_blocks(), {std::nan(""), std::nan("")});
+  // The detail maxima block_significance will want read the block from L1 cache here, where it
+  // is read anyway (its own read would come from L2 or L3: after a step the data are not in L1),
+  // and the magnitude then reads it from L1 too.
+  const bool ahead = ranges && tested.size() == local_blocks() && fields_computed_.size() == local_blocks();
+  maxima_ahead_.assign(ahead ? F * local_blocks() : 0, {std::nan(""), std::nan("")});
   for (std::size_t f = 0; f < F; ++f)
     for (std::size_t s = 0; s < local_blocks(); ++s) {
       const double* u = data_[f].data() + s * block_volume_;
       if (!ranges || !range_bound_tried(s)) {  // the interiors only
+        if (ahead && tested[s] && f < 32 && (fields_computed_[s] >> f & 1u))
+          maxima_ahead_[f * local_blocks() + s] = detail_maxima(u, block_detail_stencils(s));
         local[f] = std::max(local[f], interior_largest_magnitude(u, Dim, config_.block_size, layout_.ghosts));
         continue;
       }
@@ -1473,6 +1484,8 @@ std::pair<bool, bool> AdaptiveGrid<Dim>::block_significance(std::size_t slot, co
   // The fields are tried from the one that settled the block last time: the answer is an OR
   // over the fields, so the order changes nothing but how many are computed before it is known.
   if (first_field_.size() != local_blocks()) first_field_.assign(local_blocks(), 0);
+  if (fields_computed_.size() != local_blocks()) fields_computed_.assign(local_blocks(), 0);
+  fields_computed_[slot] = 0;
   const int F = fields(), first = first_field_[slot];
   for (int k = 0; k < F && !(any && near); ++k) {
     const int f = (first + k) % F;
@@ -1491,7 +1504,11 @@ std::pair<bool, bool> AdaptiveGrid<Dim>::block_significance(std::size_t slot, co
         continue;
       }
     }
-    const auto [largest, largest_near] = detail_maxima(block(f, slot).data(), block_detail_stencils(slot));
+    if (f < 32) fields_computed_[slot] |= 1u << f;
+    std::pair<double, double> maxima{std::nan(""), std::nan("")};
+    if (!maxima_ahead_.empty()) std::swap(maxima, maxima_ahead_[static_cast<std::size_t>(f) * local_blocks() + slot]);
+    if (std::isnan(maxima.first)) maxima = detail_maxima(block(f, slot).data(), block_detail_stencils(slot));
+    const auto [largest, largest_near] = maxima;
     any = any || largest > threshold_any;
     near = near || largest_near > threshold;
     if (any && near) first_field_[slot] = f;
@@ -1626,19 +1643,23 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_pass(const ThresholdConfig& th, AdaptPass p
   if (reuse) {
     sig = *refine_sig;
   } else {
-    std::vector<std::pair<double, double>> ranges;
-    scale = field_scales(th, &ranges);
     const auto needed = needed_in(pass);
     const auto needed_later = share ? needed_in(AdaptPass::kRefine) : std::vector<char>{};
+    std::vector<char> tested(local_blocks());
+    for (std::size_t s = 0; s < local_blocks(); ++s)
+      tested[s] = needed[first_leaf_ + s] != 0 || (share && needed_later[first_leaf_ + s] != 0);
+    std::vector<std::pair<double, double>> ranges;
+    scale = field_scales(th, &ranges, tested);
     std::vector<char> local_sig(local_blocks(), 0), local_near(share ? local_blocks() : 0, 0);
     for (std::size_t s = 0; s < local_blocks(); ++s) {
       const bool now = needed[first_leaf_ + s] != 0, later = share && needed_later[first_leaf_ + s] != 0;
-      if (!now && !later) continue;
+      if (!tested[s]) continue;
       const auto [any, near] =
           block_significance(s, th, scale, ranges, pass == AdaptPass::kCoarsen ? th.coarsen_fraction : 1.0);
       local_sig[s] = cycle && pass == AdaptPass::kRefine ? near : now && any;
       if (later) local_near[s] = near;
     }
+    maxima_ahead_.clear();  // what the blocks' tests did not take is not for a later pass
     gather_leaf_flags(local_sig, sig);
     if (share) {
       refine_sig->assign(n, 0);

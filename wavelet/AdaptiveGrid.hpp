@@ -221,8 +221,12 @@ class AdaptiveGrid {
   /// per field (field-major: field * local_blocks() + slot), ghosts included, as block_bounds
   /// would compute it, for the blocks whose range bound block_significance will try next (NaN
   /// for the others); with absolute normalisation there is no pass and `ranges` is left empty.
+  /// `tested` (one flag per local block, with `ranges`): the blocks whose significance the pass
+  /// will test. Of those whose range bound rests, the fields block_significance computed last
+  /// time have their detail maxima taken in the same read of the block, for it to use.
   std::vector<double> field_scales(const ThresholdConfig& threshold,
-                                   std::vector<std::pair<double, double>>* ranges = nullptr) const;
+                                   std::vector<std::pair<double, double>>* ranges = nullptr,
+                                   std::span<const char> tested = {}) const;
   /// Global number of significant coefficients (ghosts must be filled).
   std::int64_t significant_points(const ThresholdConfig& threshold) const;
 
@@ -370,6 +374,12 @@ class AdaptiveGrid {
   /// then gives the block's range; not while the bound rests).
   bool range_bound_tried(std::size_t slot) const { return bound_rest_.size() != local_blocks() || bound_rest_[slot] == 0; }
   mutable std::vector<int> first_field_;  // block_significance: the field it tries first
+  /// block_significance: per local block, a bit per field whose detail maxima its last call
+  /// computed (what field_scales computes ahead for the next, where the bound rests).
+  mutable std::vector<std::uint32_t> fields_computed_;
+  /// Detail maxima field_scales computed ahead (field-major), NaN where none: block_significance
+  /// takes each once.
+  mutable std::vector<std::pair<double, double>> maxima_ahead_;
 };
 
 template <int Dim>

@@ -643,6 +643,42 @@ TEST(AdaptiveGrid, FieldScalesGiveRangesWhereTheBoundWillBeTried) {
   EXPECT_GT(all_resting, 0);
 }
 
+// The detail maxima field_scales takes ahead (for the fields each block's test computed last
+// time, where its range bound rests) decide as the test's own would: a grid following two
+// moving discs, cycle after cycle, against a copy made just before each cycle (a copy has no
+// history, so its first pass takes nothing ahead). Leaves and values must come out the same.
+TEST(AdaptiveGrid, MaximaTakenAheadDecideAsComputedOnes) {
+  gw::ThresholdConfig th;
+  th.epsilon = 1e-3;
+  gw::AdaptiveGrid<2> grid(unit_box<2>(true, 1, 5));
+  auto discs_at = [](double shift) {
+    return [shift](const std::array<double, 2>& x, std::span<double> v) {
+      v[0] = disc_2d({x[0] - shift, x[1]});
+      v[1] = 0.3 * disc_2d({x[1] + shift, 1.1 - x[0]});  // another disc, moving the other way
+    };
+  };
+  grid.adapt_to_function(th, discs_at(0.0));
+  std::int64_t changes = 0;
+  for (int k = 1; k <= 10; ++k) {
+    grid.sample(discs_at(0.015 * k));
+    grid.fill_ghosts();
+    gw::AdaptiveGrid<2> fresh(grid);
+    const auto counts = grid.adapt_cycle(th);
+    const auto fresh_counts = fresh.adapt_cycle(th);
+    changes += counts.refined + counts.coarsened;
+    ASSERT_EQ(counts.refined, fresh_counts.refined) << "cycle " << k;
+    ASSERT_EQ(counts.coarsened, fresh_counts.coarsened) << "cycle " << k;
+    ASSERT_TRUE(std::ranges::equal(grid.forest().leaves(), fresh.forest().leaves())) << "cycle " << k;
+    for (int f = 0; f < 2; ++f)
+      for (std::size_t s = 0; s < grid.local_blocks(); ++s) {
+        const auto a = grid.block(f, s), b = fresh.block(f, s);
+        ASSERT_EQ(std::memcmp(a.data(), b.data(), a.size_bytes()), 0) << "cycle " << k << " field " << f << " block " << s;
+      }
+  }
+  if (root()) std::printf("blocks refined or coarsened over the cycles: %lld\n", static_cast<long long>(changes));
+  EXPECT_GT(changes, 0);  // the grid followed the discs
+}
+
 TEST(AdaptiveGrid, ForcedRegionSitsAtFinestLevel) {
   gw::AdaptiveGrid<2> grid(unit_box<2>(false, 0, 3));
   gw::ThresholdConfig th;
