@@ -26,13 +26,32 @@ decltype(auto) with_block_size(int bs, Kernel&& kernel) {
   return known ? result : kernel(std::integral_constant<int, 0>{});
 }
 
+/// Four doubles in GCC's vector types: selects on them become packed min/max (left to the
+/// auto-vectoriser, lanes kept in arrays stayed scalar, with stack spills). The helpers passing
+/// them by value live in this file's anonymous namespace and are inlined into the cloned
+/// kernels (flatten), so the ABI GCC warns about for the baseline clone is never crossed.
+#pragma GCC diagnostic ignored "-Wpsabi"
+typedef double Lanes __attribute__((vector_size(4 * sizeof(double))));
+
+/// V (a double or Lanes) from / to possibly unaligned memory.
+template <class V>
+V load(const double* p) {
+  V v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+template <class V>
+void store(double* p, const V& v) {
+  std::memcpy(p, &v, sizeof v);
+}
+
 template <int Dim, int kOrder, int kBlockSize>
 std::pair<double, double> maxima(const double* u, const DetailRows<Dim>& rows, double* along_x, double* last) {
   // The prediction and the maxima in one pass: along x the prediction is taken at every index with
-  // the centred offsets (a contiguous loop), then the evens are overwritten by their copies and
-  // the one-sided rows by their own sums; along y (and z) each line of the previous stage is
-  // read at the centred line offsets, or at the row's own; the last axis's predictions go
-  // straight into the maxima.
+  // the centred offsets (a contiguous loop), the evens selected as copies, then the one-sided
+  // rows overwritten by their own sums; along y (and z) each line of the previous stage is read
+  // at the centred line offsets, or at the row's own, four lanes at a time where the block size
+  // allows; the last axis's predictions go straight into the maxima.
   // kBlockSize > 0: the block size the caller has, known here so that the compiler unrolls the
   // short lines and keeps the lanes in registers; 0: any block size.
   const std::size_t ubs = kBlockSize > 0 ? static_cast<std::size_t>(kBlockSize) : static_cast<std::size_t>(rows.block_size);
@@ -50,14 +69,17 @@ std::pair<double, double> maxima(const double* u, const DetailRows<Dim>& rows, d
   const auto& near = rows.near;
   std::array<double, kMaxBlockSize> all{}, inner{}, row_mask{};
   for (std::size_t i = 0; i < ubs; ++i) row_mask[i] = near[0][i] ? 1.0 : 0.0;
-  // Folds one detail |u - P u| at lane i into the maxima (lanes kept apart, selects: packed
-  // maxima; NaNs ignored as std::max over the coefficients would). The near maximum leaves out
-  // lines and lanes whose rows are not all near (selects, so an unread NaN cannot get through).
-  auto fold = [&](std::size_t i, double u_value, double predicted, bool near_line) {
-    const double d = std::abs(u_value - predicted);
-    all[i] = d > all[i] ? d : all[i];
-    const double dn = near_line && row_mask[i] != 0.0 ? d : 0.0;
-    inner[i] = dn > inner[i] ? dn : inner[i];
+  // |u - P u| of a group of lanes m.. (V: one double, or Lanes) into its maxima top, top_near
+  // (selects: NaN lanes, which the absolute value keeps NaN, are ignored as std::max over the
+  // coefficients would; the near maximum leaves out lines and lanes whose rows are not all near,
+  // by selects, so an unread NaN cannot get through).
+  auto fold = [&]<class V>(std::size_t m, V& top, V& top_near, const double* u_line, const V& predicted, bool near_line) {
+    const V zero{};
+    V d = load<V>(u_line + m) - predicted;
+    d = d < 0 ? -d : d;
+    top = d > top ? d : top;
+    const V dn = near_line ? (load<V>(row_mask.data() + m) != 0 ? d : zero) : zero;
+    top_near = dn > top_near ? dn : top_near;
   };
   auto predict_line = [&](const double* row, double* to) {
     const double* at = row + first;
@@ -79,69 +101,87 @@ std::pair<double, double> maxima(const double* u, const DetailRows<Dim>& rows, d
   auto even_line = [&](std::size_t r) { return (r + ug) % 2 == 0; };
   if constexpr (Dim == 1) {
     predict_line(u, along_x);
-    for (std::size_t i = 0; i < ubs; ++i) fold(i, u[ug + i], along_x[i], true);
+    for (std::size_t i = 0; i < ubs; ++i) fold(i, all[i], inner[i], u + ug, along_x[i], true);
   } else {
-    std::size_t lines = 1;
-    for (int a = 1; a < Dim; ++a) lines *= uw;
-    for (std::size_t line = 0; line < lines; ++line) {
-      if (!even_line(line % uw)) continue;
-      if (Dim == 3 && !even_line(line / uw)) continue;
-      predict_line(u + line * uw, along_x + line * ubs);
+    for (std::size_t z = 0; z < (Dim == 3 ? uw : 1); ++z) {
+      if (Dim == 3 && !even_line(z)) continue;
+      for (std::size_t y = 0; y < uw; ++y)
+        if (even_line(y)) predict_line(u + (z * uw + y) * uw, along_x + (z * uw + y) * ubs);
     }
-    // `count` values along axis a at index j, from the previous stage's lines (`from`: array
-    // index 0 along that axis, `stride` values apart), each handed to sink(m, value) as it is
-    // computed: the last stage folds them straight into the maxima, without storing a line that
-    // would be read back at once (a store-forwarding stall per vector).
-    auto predict_across = [&](std::size_t a, const double* from, std::size_t j, std::size_t stride, std::size_t count,
-                              auto&& sink) {
+    // The prediction along axis a at index j, lanes m_begin..m_end of the previous stage's lines
+    // (`from`: array index 0 along that axis, `stride` values apart), a group of V's lanes at a
+    // time (V: one double, or Lanes) handed to sink(m, value) as it is computed: the last axis
+    // folds them straight into the maxima (storing a line of them to fold it would stall on
+    // reading it back). Each lane's sum is the scalar one, term for term.
+    auto predict_across = [&]<class V>(std::size_t a, const double* from, std::size_t j, std::size_t stride,
+                                       std::size_t m_begin, std::size_t m_end, auto&& sink) {
+      constexpr std::size_t kLanes = sizeof(V) / sizeof(double);
       if (!rows.centred[a][j]) {
         const AxisStencil& st = rows.axis[a][j];
-        for (std::size_t m = 0; m < count; ++m) {
-          double sum = 0;
+        for (std::size_t m = m_begin; m < m_end; m += kLanes) {
+          V sum{};
           for (int k = 0; k < st.size; ++k)
-            sum += st.w[static_cast<std::size_t>(k)] * from[static_cast<std::size_t>(st.at[static_cast<std::size_t>(k)]) * stride + m];
+            sum += st.w[static_cast<std::size_t>(k)] *
+                   load<V>(from + static_cast<std::size_t>(st.at[static_cast<std::size_t>(k)]) * stride + m);
           sink(m, sum);
         }
         return;
       }
       if (j % 2 == 0) {
         const double* src = from + (j + ug) * stride;
-        for (std::size_t m = 0; m < count; ++m) sink(m, 0.0 + src[m]);
+        for (std::size_t m = m_begin; m < m_end; m += kLanes) sink(m, load<V>(src + m) + 0.0);
         return;
       }
       const double* src = from + (first + j) * stride;
-      for (std::size_t m = 0; m < count; ++m) {
-        double sum = 0;
-        for (std::size_t k = 0; k < w.size(); ++k) sum += w[k] * src[2 * k * stride + m];
+      for (std::size_t m = m_begin; m < m_end; m += kLanes) {
+        V sum{};
+        for (std::size_t k = 0; k < w.size(); ++k) sum += w[k] * load<V>(src + 2 * k * stride + m);
         sink(m, sum);
       }
     };
-    if constexpr (Dim == 2) {
-      (void)last;
-      for (std::size_t j = 0; j < ubs; ++j) {
-        const double* u_line = u + (j + ug) * uw + ug;
-        const bool near_line = near[1][j];
-        predict_across(1, along_x, j, ubs, ubs, [&](std::size_t i, double value) { fold(i, u_line[i], value, near_line); });
-      }
-    } else {
-      // Along y on the x-predicted lines of even z (planes of bs^2 after `last`'s first bs^2),
-      // then along z straight into the maxima.
-      double* along_y = last + ubs * ubs;
-      for (std::size_t z = 0; z < uw; ++z) {
-        if (!even_line(z)) continue;
-        for (std::size_t j = 0; j < ubs; ++j) {
-          double* to = along_y + (z * ubs + j) * ubs;
-          predict_across(1, along_x + z * uw * ubs, j, ubs, ubs, [&](std::size_t m, double value) { to[m] = value; });
+    auto stages = [&]<class V>() {
+      constexpr std::size_t kLanes = sizeof(V) / sizeof(double);
+      if constexpr (Dim == 2) {
+        // A group's maxima stay in registers over all its lines.
+        for (std::size_t m0 = 0; m0 < ubs; m0 += kLanes) {
+          V top{}, top_near{};
+          for (std::size_t j = 0; j < ubs; ++j) {
+            const double* u_line = u + (j + ug) * uw + ug;
+            predict_across.template operator()<V>(1, along_x, j, ubs, m0, m0 + kLanes, [&](std::size_t m, const V& p) {
+              fold(m, top, top_near, u_line, p, near[1][j]);
+            });
+          }
+          store(all.data() + m0, top);
+          store(inner.data() + m0, top_near);
         }
-      }
-      for (std::size_t k = 0; k < ubs; ++k)
-        for (std::size_t j = 0; j < ubs; ++j) {
-          const double* u_line = u + ((k + ug) * uw + j + ug) * uw + ug;
-          const bool near_line = near[1][j] && near[2][k];
-          predict_across(2, along_y + j * ubs, k, ubs * ubs, ubs,
-                         [&](std::size_t i, double value) { fold(i, u_line[i], value, near_line); });
+      } else {
+        // Along y on the x-predicted lines of even z (planes of bs^2 after `last`'s first bs^2),
+        // then along z line by line into the maxima (a group over a whole plane reads too far
+        // apart: slower on 32^3 blocks).
+        double* along_y = last + ubs * ubs;
+        for (std::size_t z = 0; z < uw; ++z) {
+          if (!even_line(z)) continue;
+          for (std::size_t j = 0; j < ubs; ++j) {
+            double* to = along_y + (z * ubs + j) * ubs;
+            predict_across.template operator()<V>(1, along_x + z * uw * ubs, j, ubs, 0, ubs,
+                                                  [&](std::size_t m, const V& p) { store(to + m, p); });
+          }
         }
-    }
+        for (std::size_t k = 0; k < ubs; ++k)
+          for (std::size_t j = 0; j < ubs; ++j) {
+            const double* u_line = u + ((k + ug) * uw + j + ug) * uw + ug;
+            const bool near_line = near[1][j] && near[2][k];
+            predict_across.template operator()<V>(2, along_y + j * ubs, k, ubs * ubs, 0, ubs, [&](std::size_t m, const V& p) {
+              V top = load<V>(all.data() + m), top_near = load<V>(inner.data() + m);
+              fold(m, top, top_near, u_line, p, near_line);
+              store(all.data() + m, top);
+              store(inner.data() + m, top_near);
+            });
+          }
+      }
+    };
+    if (ubs % 4 == 0) stages.template operator()<Lanes>();
+    else stages.template operator()<double>();
   }
   double largest = 0, largest_near = 0;
   for (std::size_t i = 0; i < ubs; ++i) {
@@ -150,10 +190,6 @@ std::pair<double, double> maxima(const double* u, const DetailRows<Dim>& rows, d
   }
   return {largest, largest_near};
 }
-
-/// Four doubles in GCC's vector types: selects on them become packed min/max (left to the
-/// auto-vectoriser, lanes kept in arrays stayed scalar, with stack spills).
-typedef double Lanes __attribute__((vector_size(4 * sizeof(double))));
 
 }  // namespace
 
