@@ -711,13 +711,15 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
   slot_of_.resize(n);
   flight_.resize(n);
   counter_.assign(n, 0u);
-  pending_.assign(n, Pending{kNever, kNever, kNoPartner, 0u, 0, 0u, -kNever, {0, 0, 0}, false});
+  pending_.assign(n, Pending{kNever, kNever, kNoPartner, 0u, 0, 0u, -kNever, {0, 0, 0}, false, 0.0});
   spin_.resize(n);
   spinning_ = false;
+  frictionless_ = settings_.law.friction == 0.0;
   for (std::size_t i = 0; i < n; ++i) {
     spin_[i] = Spin{store.angular_velocity[i], store.torque[i] * store.inverse_inertia(i),
                     store.inverse_mass(i), store.inverse_inertia(i)};
     pending_[i].fixed = store.is_fixed(i);
+    pending_[i].inverse_mass = store.inverse_mass(i);
     spinning_ = spinning_ || !spin_[i].angular_acceleration.isZero(0.0);
     domain.wrap(store.position[i]);
     flight_[i] = Flight{store.position[i], now_, store.velocity[i], store.radius[i]};
@@ -800,29 +802,34 @@ EventStats EventDrivenCollider::advance_to(ParticleStore& store, const Domain& d
       continue;
     }
     // What the collision reads besides i's Flight and Pending lines, all requested at once.
-    __builtin_prefetch(&spin_[a]);
+    // Without friction an impulse is along the normal: it changes no angular velocity, and the
+    // angular velocities do not enter it (Spin lines are left alone, Body's stay zero).
+    const bool spin = !frictionless_;
+    if (spin) __builtin_prefetch(&spin_[a]);
     if (pair) {
       __builtin_prefetch(&flight_[b]);
       __builtin_prefetch(&pending_[b]);
-      __builtin_prefetch(&spin_[b]);
+      if (spin) __builtin_prefetch(&spin_[b]);
       calendar_.prefetch(partner);
     }
     sync(i, now_);
-    Body body_a;
-    body_a.velocity = flight_[a].velocity;
-    body_a.angular_velocity = spin_[a].angular_velocity;
-    body_a.inverse_mass = spin_[a].inverse_mass;
-    body_a.inverse_inertia = spin_[a].inverse_inertia;
-    body_a.radius = flight_[a].radius;
+    auto body = [&](std::size_t k) {
+      Body bk;
+      bk.velocity = flight_[k].velocity;
+      bk.inverse_mass = pending_[k].inverse_mass;
+      bk.radius = flight_[k].radius;
+      if (spin) {
+        bk.angular_velocity = spin_[k].angular_velocity;
+        bk.inverse_inertia = spin_[k].inverse_inertia;
+      }
+      return bk;
+    };
+    Body body_a = body(a);
     Body body_b;
     Vec3 normal = Vec3::Zero();
     if (pair) {
       sync(partner, now_);
-      body_b.velocity = flight_[b].velocity;
-      body_b.angular_velocity = spin_[b].angular_velocity;
-      body_b.inverse_mass = spin_[b].inverse_mass;
-      body_b.inverse_inertia = spin_[b].inverse_inertia;
-      body_b.radius = flight_[b].radius;
+      body_b = body(b);
       normal = domain.separation(flight_[a].position, flight_[b].position).normalized();
     } else {
       const int face = -1 - partner;
@@ -852,11 +859,11 @@ EventStats EventDrivenCollider::advance_to(ParticleStore& store, const Domain& d
     }
     ++counter_[a];  // even a grazing no-op: the rescan below must not return the same contact
     flight_[a].velocity = body_a.velocity;
-    spin_[a].angular_velocity = body_a.angular_velocity;
+    if (spin) spin_[a].angular_velocity = body_a.angular_velocity;
     if (pair) {
       ++counter_[b];
       flight_[b].velocity = body_b.velocity;
-      spin_[b].angular_velocity = body_b.angular_velocity;
+      if (spin) spin_[b].angular_velocity = body_b.angular_velocity;
     }
     if (impulse.approaching) {
       ++(pair ? stats.collisions : stats.wall_hits);
