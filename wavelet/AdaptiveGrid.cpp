@@ -1371,12 +1371,12 @@ void AdaptiveGrid<Dim>::block_details(int field, std::size_t slot, std::span<dou
 }
 
 template <int Dim>
-std::pair<double, double> AdaptiveGrid<Dim>::largest_details(int field, std::size_t slot) const {
+DetailMaxima AdaptiveGrid<Dim>::largest_details(int field, std::size_t slot) const {
   return detail_maxima(block(field, slot).data(), block_detail_stencils(slot));
 }
 
 template <int Dim>
-std::pair<double, double> AdaptiveGrid<Dim>::detail_maxima(const double* u, const DetailStencils& stencils) const {
+DetailMaxima AdaptiveGrid<Dim>::detail_maxima(const double* u, const DetailStencils& stencils) const {
   // The stages' scratch: x-predicted lines, then (3D) y-predicted planes, then the last axis.
   const auto ubs = static_cast<std::size_t>(config_.block_size);
   const auto uw = ubs + 2 * static_cast<std::size_t>(layout_.ghosts);
@@ -1405,17 +1405,21 @@ std::vector<double> AdaptiveGrid<Dim>::field_scales(const ThresholdConfig& th,
   // of a 16^2 block array is ghosts), where the bound rests (block_significance) their range is
   // NaN.
   if (ranges) ranges->assign(F * local_blocks(), {std::nan(""), std::nan("")});
-  // The detail maxima block_significance will want read the block from L1 cache here, where it
-  // is read anyway (its own read would come from L2 or L3: after a step the data are not in L1),
-  // and the magnitude then reads it from L1 too.
+  // The detail maxima block_significance will want are taken here, where the block is read
+  // anyway (their own read would come from L2 or L3: after a step the data are not in L1), and
+  // give the interior's magnitude in the same read.
   const bool ahead = ranges && tested.size() == local_blocks() && fields_computed_.size() == local_blocks();
   maxima_ahead_.assign(ahead ? F * local_blocks() : 0, {std::nan(""), std::nan("")});
   for (std::size_t f = 0; f < F; ++f)
     for (std::size_t s = 0; s < local_blocks(); ++s) {
       const double* u = data_[f].data() + s * block_volume_;
       if (!ranges || !range_bound_tried(s)) {  // the interiors only
-        if (ahead && tested[s] && f < 32 && (fields_computed_[s] >> f & 1u))
-          maxima_ahead_[f * local_blocks() + s] = detail_maxima(u, block_detail_stencils(s));
+        if (ahead && tested[s] && f < 32 && (fields_computed_[s] >> f & 1u)) {
+          const DetailMaxima found = detail_maxima(u, block_detail_stencils(s));
+          maxima_ahead_[f * local_blocks() + s] = {found.largest, found.largest_near};
+          local[f] = std::max(local[f], found.magnitude);
+          continue;
+        }
         local[f] = std::max(local[f], interior_largest_magnitude(u, Dim, config_.block_size, layout_.ghosts));
         continue;
       }
@@ -1507,7 +1511,10 @@ std::pair<bool, bool> AdaptiveGrid<Dim>::block_significance(std::size_t slot, co
     if (f < 32) fields_computed_[slot] |= 1u << f;
     std::pair<double, double> maxima{std::nan(""), std::nan("")};
     if (!maxima_ahead_.empty()) std::swap(maxima, maxima_ahead_[static_cast<std::size_t>(f) * local_blocks() + slot]);
-    if (std::isnan(maxima.first)) maxima = detail_maxima(block(f, slot).data(), block_detail_stencils(slot));
+    if (std::isnan(maxima.first)) {
+      const DetailMaxima found = detail_maxima(block(f, slot).data(), block_detail_stencils(slot));
+      maxima = {found.largest, found.largest_near};
+    }
     const auto [largest, largest_near] = maxima;
     any = any || largest > threshold_any;
     near = near || largest_near > threshold;
@@ -1567,7 +1574,7 @@ bool AdaptiveGrid<Dim>::parent_significant(const Key& parent, const ThresholdCon
       const auto [child, at] = parent_sources_[p];
       parent_array_[p] = child < 0 ? 0.0 : from[static_cast<std::size_t>(child)][at];
     }
-    if (detail_maxima(parent_array_.data(), stencils).second > th.epsilon * scale[static_cast<std::size_t>(f)]) return true;
+    if (detail_maxima(parent_array_.data(), stencils).largest_near > th.epsilon * scale[static_cast<std::size_t>(f)]) return true;
   }
   return false;
 }

@@ -127,6 +127,13 @@ enum class AdaptPass { kRefine, kCoarsen };
 enum class GhostKind : std::uint8_t { kSameLevel, kFromFiner, kFromCoarser, kOutsideDomain };
 
 /// What one full ghost fill of this rank computes (AdaptiveGrid::ghost_plan_stats).
+/// What block_detail_maxima (DetailKernels.hpp) finds in its one read of a block array.
+struct DetailMaxima {
+  double largest = 0;       ///< largest |u - P u| over the interior points
+  double largest_near = 0;  ///< ... over the near points
+  double magnitude = 0;     ///< largest |u| over the interior points (interior_largest_magnitude's)
+};
+
 struct GhostPlanStats {
   std::int64_t rows = 0;            ///< ghost points and scratch points filled
   std::int64_t scratch_points = 0;  ///< intermediate points of the separable prolongation
@@ -214,8 +221,9 @@ class AdaptiveGrid {
   void block_details(int field, std::size_t slot, std::span<double> out) const;
   /// Largest |d| of a field of a block, over all its interior points and over its `near` ones
   /// (those whose prediction reads only what a family of children holds): what tagging
-  /// compares with the threshold, bitwise the maximum of block_details (ghosts must be filled).
-  std::pair<double, double> largest_details(int field, std::size_t slot) const;
+  /// compares with the threshold, bitwise the maximum of block_details (ghosts must be filled);
+  /// and the largest |u| of its interior points, found in the same read.
+  DetailMaxima largest_details(int field, std::size_t slot) const;
   /// Global significance scale per field (1 for absolute, max |u| of the field's group). With
   /// `ranges` (linf normalisation), the same pass also gives each local block's range of values
   /// per field (field-major: field * local_blocks() + slot), ghosts included, as block_bounds
@@ -339,7 +347,7 @@ class AdaptiveGrid {
   const double* predict_array(const double* u, const DetailStencils& st) const;
   /// Largest |u - P u| over the interior points of a block array, and over its near points
   /// (those whose rows are all `near`).
-  std::pair<double, double> detail_maxima(const double* u, const DetailStencils& st) const;
+  DetailMaxima detail_maxima(const double* u, const DetailStencils& st) const;
   /// Whether the parent of a local family of leaves would be significant in the refine pass's
   /// sense (near points only, any field above its threshold), from the children's values and
   /// ghosts alone: the refine pass refines exactly such a parent, so the coarsen pass keeps the

@@ -46,7 +46,7 @@ void store(double* p, const V& v) {
 }
 
 template <int Dim, int kOrder, int kBlockSize>
-std::pair<double, double> maxima(const double* u, const DetailRows<Dim>& rows, double* along_x, double* last) {
+DetailMaxima maxima(const double* u, const DetailRows<Dim>& rows, double* along_x, double* last) {
   // The prediction and the maxima in one pass: along x the prediction is taken at every index with
   // the centred offsets (a contiguous loop), the evens selected as copies, then the one-sided
   // rows overwritten by their own sums; along y (and z) each line of the previous stage is read
@@ -67,15 +67,19 @@ std::pair<double, double> maxima(const double* u, const DetailRows<Dim>& rows, d
   // Odd index i reads i + g + 2m - (kOrder - 1): from `first` on, every other point.
   const std::size_t first = ug - static_cast<std::size_t>(kOrder - 1);
   const auto& near = rows.near;
-  std::array<double, kMaxBlockSize> all{}, inner{}, row_mask{};
+  std::array<double, kMaxBlockSize> all{}, inner{}, magnitude{}, row_mask{};
   for (std::size_t i = 0; i < ubs; ++i) row_mask[i] = near[0][i] ? 1.0 : 0.0;
-  // |u - P u| of a group of lanes m.. (V: one double, or Lanes) into its maxima top, top_near
-  // (selects: NaN lanes, which the absolute value keeps NaN, are ignored as std::max over the
-  // coefficients would; the near maximum leaves out lines and lanes whose rows are not all near,
-  // by selects, so an unread NaN cannot get through).
-  auto fold = [&]<class V>(std::size_t m, V& top, V& top_near, const double* u_line, const V& predicted, bool near_line) {
+  // |u - P u| of a group of lanes m.. (V: one double, or Lanes) into its maxima top, top_near,
+  // and |u| into top_u (selects: NaN lanes, which the absolute value keeps NaN, are ignored as
+  // std::max over the coefficients would; the near maximum leaves out lines and lanes whose rows
+  // are not all near, by selects, so an unread NaN cannot get through).
+  auto fold = [&]<class V>(std::size_t m, V& top, V& top_near, V& top_u, const double* u_line, const V& predicted,
+                           bool near_line) {
     const V zero{};
-    V d = load<V>(u_line + m) - predicted;
+    const V value = load<V>(u_line + m);
+    const V size = value < 0 ? -value : value;
+    top_u = size > top_u ? size : top_u;
+    V d = value - predicted;
     d = d < 0 ? -d : d;
     top = d > top ? d : top;
     const V dn = near_line ? (load<V>(row_mask.data() + m) != 0 ? d : zero) : zero;
@@ -101,7 +105,7 @@ std::pair<double, double> maxima(const double* u, const DetailRows<Dim>& rows, d
   auto even_line = [&](std::size_t r) { return (r + ug) % 2 == 0; };
   if constexpr (Dim == 1) {
     predict_line(u, along_x);
-    for (std::size_t i = 0; i < ubs; ++i) fold(i, all[i], inner[i], u + ug, along_x[i], true);
+    for (std::size_t i = 0; i < ubs; ++i) fold(i, all[i], inner[i], magnitude[i], u + ug, along_x[i], true);
   } else {
     for (std::size_t z = 0; z < (Dim == 3 ? uw : 1); ++z) {
       if (Dim == 3 && !even_line(z)) continue;
@@ -144,15 +148,16 @@ std::pair<double, double> maxima(const double* u, const DetailRows<Dim>& rows, d
       if constexpr (Dim == 2) {
         // A group's maxima stay in registers over all its lines.
         for (std::size_t m0 = 0; m0 < ubs; m0 += kLanes) {
-          V top{}, top_near{};
+          V top{}, top_near{}, top_u{};
           for (std::size_t j = 0; j < ubs; ++j) {
             const double* u_line = u + (j + ug) * uw + ug;
             predict_across.template operator()<V>(1, along_x, j, ubs, m0, m0 + kLanes, [&](std::size_t m, const V& p) {
-              fold(m, top, top_near, u_line, p, near[1][j]);
+              fold(m, top, top_near, top_u, u_line, p, near[1][j]);
             });
           }
           store(all.data() + m0, top);
           store(inner.data() + m0, top_near);
+          store(magnitude.data() + m0, top_u);
         }
       } else {
         // Along y on the x-predicted lines of even z (planes of bs^2 after `last`'s first bs^2),
@@ -172,10 +177,11 @@ std::pair<double, double> maxima(const double* u, const DetailRows<Dim>& rows, d
             const double* u_line = u + ((k + ug) * uw + j + ug) * uw + ug;
             const bool near_line = near[1][j] && near[2][k];
             predict_across.template operator()<V>(2, along_y + j * ubs, k, ubs * ubs, 0, ubs, [&](std::size_t m, const V& p) {
-              V top = load<V>(all.data() + m), top_near = load<V>(inner.data() + m);
-              fold(m, top, top_near, u_line, p, near_line);
+              V top = load<V>(all.data() + m), top_near = load<V>(inner.data() + m), top_u = load<V>(magnitude.data() + m);
+              fold(m, top, top_near, top_u, u_line, p, near_line);
               store(all.data() + m, top);
               store(inner.data() + m, top_near);
+              store(magnitude.data() + m, top_u);
             });
           }
       }
@@ -183,12 +189,13 @@ std::pair<double, double> maxima(const double* u, const DetailRows<Dim>& rows, d
     if (ubs % 4 == 0) stages.template operator()<Lanes>();
     else stages.template operator()<double>();
   }
-  double largest = 0, largest_near = 0;
+  DetailMaxima found;
   for (std::size_t i = 0; i < ubs; ++i) {
-    largest = std::max(largest, all[i]);
-    largest_near = std::max(largest_near, inner[i]);
+    found.largest = std::max(found.largest, all[i]);
+    found.largest_near = std::max(found.largest_near, inner[i]);
+    found.magnitude = std::max(found.magnitude, magnitude[i]);
   }
-  return {largest, largest_near};
+  return found;
 }
 
 }  // namespace
@@ -319,7 +326,7 @@ namespace {
 /// size, the others for any. (Not 8: compiled for it, the 2D maxima took 30% more instructions
 /// on the 8^2 blocks of two_cylinders.toml than the general loop.)
 template <int Dim>
-std::pair<double, double> dispatch(const double* u, const DetailRows<Dim>& rows, double* along_x, double* last) {
+DetailMaxima dispatch(const double* u, const DetailRows<Dim>& rows, double* along_x, double* last) {
   return with_block_size<16, 32>(rows.block_size, [&](auto size) {
     constexpr int kSize = decltype(size)::value;
     return rows.order == 4 ? maxima<Dim, 4, kSize>(u, rows, along_x, last) : maxima<Dim, 6, kSize>(u, rows, along_x, last);
@@ -328,17 +335,17 @@ std::pair<double, double> dispatch(const double* u, const DetailRows<Dim>& rows,
 
 }  // namespace
 
-GRAINWAVE_CLONES_AVX2 std::pair<double, double> block_detail_maxima(const double* u, const DetailRows<1>& rows,
+GRAINWAVE_CLONES_AVX2 DetailMaxima block_detail_maxima(const double* u, const DetailRows<1>& rows,
                                                                       double* along_x, double* last) {
   return dispatch<1>(u, rows, along_x, last);
 }
 
-GRAINWAVE_CLONES_AVX512 std::pair<double, double> block_detail_maxima(const double* u, const DetailRows<2>& rows,
+GRAINWAVE_CLONES_AVX512 DetailMaxima block_detail_maxima(const double* u, const DetailRows<2>& rows,
                                                                       double* along_x, double* last) {
   return dispatch<2>(u, rows, along_x, last);
 }
 
-GRAINWAVE_CLONES_AVX2 std::pair<double, double> block_detail_maxima(const double* u, const DetailRows<3>& rows,
+GRAINWAVE_CLONES_AVX2 DetailMaxima block_detail_maxima(const double* u, const DetailRows<3>& rows,
                                                                       double* along_x, double* last) {
   return dispatch<3>(u, rows, along_x, last);
 }

@@ -31,11 +31,11 @@ struct DetailRows {
 };
 
 /// Largest |u - P u| over the interior points of the block array u (ghosts filled), and over
-/// its near points. along_x: (bs + 2g)^(Dim-1) * bs values of scratch; last: bs (2D) or
-/// (bs + 2g) * bs^2 + bs^2 (3D) values.
-std::pair<double, double> block_detail_maxima(const double* u, const DetailRows<1>& rows, double* along_x, double* last);
-std::pair<double, double> block_detail_maxima(const double* u, const DetailRows<2>& rows, double* along_x, double* last);
-std::pair<double, double> block_detail_maxima(const double* u, const DetailRows<3>& rows, double* along_x, double* last);
+/// its near points, and largest |u| over the interior points. along_x: (bs + 2g)^(Dim-1) * bs
+/// values of scratch; last: bs (2D) or (bs + 2g) * bs^2 + bs^2 (3D) values.
+DetailMaxima block_detail_maxima(const double* u, const DetailRows<1>& rows, double* along_x, double* last);
+DetailMaxima block_detail_maxima(const double* u, const DetailRows<2>& rows, double* along_x, double* last);
+DetailMaxima block_detail_maxima(const double* u, const DetailRows<3>& rows, double* along_x, double* last);
 
 /// Smallest and largest of u[0 .. n) (n >= 1; NaNs are passed over). The range bound of the
 /// tagging reads every value of a block array once per field, so it runs in packed lanes.
