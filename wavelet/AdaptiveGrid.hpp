@@ -126,7 +126,6 @@ enum class AdaptPass { kRefine, kCoarsen };
 /// How a ghost point got its value (for diagnostics and tests).
 enum class GhostKind : std::uint8_t { kSameLevel, kFromFiner, kFromCoarser, kOutsideDomain };
 
-/// What one full ghost fill of this rank computes (AdaptiveGrid::ghost_plan_stats).
 /// What block_detail_maxima (DetailKernels.hpp) finds in its one read of a block array.
 struct DetailMaxima {
   double largest = 0;       ///< largest |u - P u| over the interior points
@@ -134,6 +133,7 @@ struct DetailMaxima {
   double magnitude = 0;     ///< largest |u| over the interior points (interior_largest_magnitude's)
 };
 
+/// What one full ghost fill of this rank computes (AdaptiveGrid::ghost_plan_stats).
 struct GhostPlanStats {
   std::int64_t rows = 0;            ///< ghost points and scratch points filled
   std::int64_t scratch_points = 0;  ///< intermediate points of the separable prolongation
@@ -346,7 +346,7 @@ class AdaptiveGrid {
   /// buffer, valid until the next call.
   const double* predict_array(const double* u, const DetailStencils& st) const;
   /// Largest |u - P u| over the interior points of a block array, and over its near points
-  /// (those whose rows are all `near`).
+  /// (those whose rows are all `near`), and largest |u| over its interior points.
   DetailMaxima detail_maxima(const double* u, const DetailStencils& st) const;
   /// Whether the parent of a local family of leaves would be significant in the refine pass's
   /// sense (near points only, any field above its threshold), from the children's values and

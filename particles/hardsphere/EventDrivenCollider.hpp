@@ -85,6 +85,15 @@
 // write misses. Without gain: the whole library built with link-time optimisation (calendar
 // calls inlined): 737-752 against 718-771 k/s; the old cell's block requested from the cell
 // rather than from slot_of_ (a load that can miss): best of seven 791-815 against 781-832 k/s.
+// Stop 42, on another VM (AMD EPYC with AVX-512; 2 MB L2 reported, but a pointer chase through
+// a shuffled array takes 10-17 ns up to 4 MB and 116-160 ns from 8 MB on): N = 1372 1.32-1.43 M,
+// N = 97 556 0.47-0.56 M collisions/s (0.80 M on the stop-41 VM): the large gas's ~30 MB are
+// all beyond that cache here. Without gain there (three-repetition medians, alternating): the
+// neighbourhood of the calendar's runner-up gathered and its Flight lines prefetched before
+// each event's own scans (1372: 1.19-1.21 M against 1.34-1.40 M; 97 556: 503 against 468-532
+// k/s), the partner's neighbourhood prefetched before scanning the first particle (1.14-1.27 M
+// against 1.32-1.40 M, 420-462 against 468-497 k/s): the gathers' own loads stall. Kept:
+// frictionless collisions leave the Spin lines alone (468-532 -> 467-564 k/s, within the noise).
 #include <array>
 #include <cstdint>
 #include <vector>
@@ -180,9 +189,10 @@ class EventDrivenCollider {
     bool fixed;  ///< immovable (ParticleStore::is_fixed)
     double inverse_mass;  ///< Spin's, again: a frictionless collision reads nothing else of Spin
   };
-  /// What a collision reads and writes of its particle besides Flight, in one cache line: the
-  /// store's angular velocity (authoritative while events are pending, like Flight), the
-  /// angular acceleration from its torque, and the inverse mass and moment of inertia.
+  /// What a collision with friction reads and writes of its particle besides Flight and
+  /// Pending, in one cache line: the store's angular velocity (authoritative while events are
+  /// pending, like Flight), the angular acceleration from its torque, and the inverse mass and
+  /// moment of inertia.
   struct alignas(64) Spin {
     Vec3 angular_velocity;
     Vec3 angular_acceleration;
