@@ -92,7 +92,7 @@
 // neighbourhood of the calendar's runner-up gathered and its Flight lines prefetched before
 // each event's own scans (1372: 1.19-1.21 M against 1.34-1.40 M; 97 556: 503 against 468-532
 // k/s), the partner's neighbourhood prefetched before scanning the first particle (1.14-1.27 M
-// against 1.32-1.40 M, 420-462 against 468-497 k/s): the gathers' own loads stall. Kept:
+// against 1.32-1.40 M, 420-462 against 495-497 k/s): the gathers' own loads stall. Kept:
 // frictionless collisions leave the Spin lines alone (468-532 -> 467-564 k/s, within the noise).
 #include <array>
 #include <cstdint>
