@@ -445,9 +445,7 @@ struct PointResolver {
   /// the hits forgotten before each block, these are all the leaves its ghosts read (but the
   /// same-level ones build_ghost_plan finds per region, which it appends itself).
   std::vector<std::size_t>* found_leaves = nullptr;
-  void forget() const {
-    remembered = 0;
-  }
+  void forget() const { remembered = 0; }
 
   /// Appends the terms giving the value at (level, idx): a leaf's point, by injection from a
   /// finer leaf, or by Deslauriers-Dubuc prediction from level - 1.
@@ -1166,10 +1164,13 @@ void copy_runs(std::span<const Run> runs, std::vector<double>* fields) {
     }
 }
 
+/// Copy runs, then local sums, for kFields consecutive field arrays: a whole list's, or one
+/// block's entries of it.
 template <int kFields, typename Plan>
-void fill_local_terms(const Plan& plan, std::size_t list, std::vector<double>* fields) {
-  copy_runs<kFields>(std::span(plan.copy_runs[list]), fields);
-  sum_local_rows<kFields>(plan, plan.sum_rows[list], fields);
+void fill_local_terms(const Plan& plan, std::span<const typename Plan::CopyRun> runs,
+                      std::span<const std::int32_t> sums, std::vector<double>* fields) {
+  copy_runs<kFields>(runs, fields);
+  sum_local_rows<kFields>(plan, sums, fields);
 }
 
 /// The rows with remote terms, all their terms in their order (the leading remote ones, the
@@ -1201,7 +1202,7 @@ void sum_remote_rows(const Plan& plan, std::span<const std::int32_t> rows, std::
 template <int Dim>
 void AdaptiveGrid<Dim>::fill_local_ghosts(const GhostPlan& plan, std::size_t list) {
   for_field_groups(data_, [&](auto group, std::vector<double>* fields) {
-    fill_local_terms<decltype(group)::value>(plan, list, fields);
+    fill_local_terms<decltype(group)::value>(plan, std::span(plan.copy_runs[list]), std::span(plan.sum_rows[list]), fields);
   });
 }
 
@@ -1277,9 +1278,7 @@ double AdaptiveGrid<Dim>::write_and_fill_stencil_ghosts(const std::function<void
   // messages) its remote rows, then those summed from its own ghosts, stage by stage.
   auto fill_block = [&](std::size_t s, bool remote) {
     for_field_groups(data_, [&](auto group, std::vector<double>* fields) {
-      constexpr int kFields = decltype(group)::value;
-      copy_runs<kFields>(entries(plan.copy_runs[0], 0, s), fields);
-      sum_local_rows<kFields>(plan, entries(plan.sum_rows[0], 1, s), fields);
+      fill_local_terms<decltype(group)::value>(plan, entries(plan.copy_runs[0], 0, s), entries(plan.sum_rows[0], 1, s), fields);
     });
     if (remote) sum_remote_rows(plan, entries(plan.remote_rows[0], 2, s), data_);
     for (std::size_t stage = 0; stage < 2; ++stage) {

@@ -167,7 +167,7 @@ const double* separable_tensor_sums(const double* u, int width,
     std::size_t outer = 1;
     for (std::size_t b = a + 1; b < static_cast<std::size_t>(Dim); ++b) outer *= uw;
     std::vector<double>& next = stage[a];
-    next.assign(outer * ubs * done, 0.0);
+    next.resize(outer * ubs * done);  // the lines read later are written below
     for (std::size_t o = 0; o < outer; ++o) {
       if (a + 1 < static_cast<std::size_t>(Dim) && !line_read(o, a + 1)) continue;  // o: the lines of axes a+1..
       for (std::size_t j = 0; j < ubs; ++j) {

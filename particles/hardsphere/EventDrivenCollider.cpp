@@ -716,8 +716,7 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
   spinning_ = false;
   frictionless_ = settings_.law.friction == 0.0;
   for (std::size_t i = 0; i < n; ++i) {
-    spin_[i] = Spin{store.angular_velocity[i], store.torque[i] * store.inverse_inertia(i),
-                    store.inverse_mass(i), store.inverse_inertia(i)};
+    spin_[i] = Spin{store.angular_velocity[i], store.torque[i] * store.inverse_inertia(i), store.inverse_inertia(i)};
     pending_[i].fixed = store.is_fixed(i);
     pending_[i].inverse_mass = store.inverse_mass(i);
     spinning_ = spinning_ || !spin_[i].angular_acceleration.isZero(0.0);

@@ -187,16 +187,16 @@ class EventDrivenCollider {
     double burst_start;  ///< collapse detection: start of the current burst of collisions
     std::array<int, 3> cell;
     bool fixed;  ///< immovable (ParticleStore::is_fixed)
-    double inverse_mass;  ///< Spin's, again: a frictionless collision reads nothing else of Spin
+    double inverse_mass;  ///< here, not in Spin: every collision reads it
   };
   /// What a collision with friction reads and writes of its particle besides Flight and
   /// Pending, in one cache line: the store's angular velocity (authoritative while events are
-  /// pending, like Flight), the angular acceleration from its torque, and the inverse mass and
-  /// moment of inertia.
+  /// pending, like Flight), the angular acceleration from its torque, and the inverse moment of
+  /// inertia.
   struct alignas(64) Spin {
     Vec3 angular_velocity;
     Vec3 angular_acceleration;
-    double inverse_mass, inverse_inertia;
+    double inverse_inertia;
   };
 
   void sync(int i, double t);
