@@ -186,42 +186,51 @@ double EventDrivenCollider::next_crossing(int i, const Vec3& x, const Vec3& v, i
 #endif
 
 void EventDrivenCollider::bin(int i, int cell) {
-  const int block = cell * block_;
-  const int occupied = ++blocks_[static_cast<std::size_t>(block)];
-  const int slot = block + occupied;
-  blocks_[static_cast<std::size_t>(slot)] = i;
-  slot_of_[static_cast<std::size_t>(i)] = slot;
-  head_[static_cast<std::size_t>(cell)] = head_word(occupied, i);
-}
-
-void EventDrivenCollider::unbin(int i) {
-  // The cell's last particle fills the hole, so every block stays dense.
-  const int slot = slot_of_[static_cast<std::size_t>(i)];
-  const int block = slot / block_ * block_;
-  const int last = block + blocks_[static_cast<std::size_t>(block)]--;
-  const int moved = blocks_[static_cast<std::size_t>(last)];
-  blocks_[static_cast<std::size_t>(slot)] = moved;
-  slot_of_[static_cast<std::size_t>(moved)] = slot;
-  const int occupied = last - block - 1;
-  head_[static_cast<std::size_t>(block / block_)] =
-      head_word(occupied, blocks_[static_cast<std::size_t>(block + 1)]);
-}
-
-void EventDrivenCollider::grow_cells() {
-  const std::size_t n_blocks = (blocks_.size() - kSlotChunk) / static_cast<std::size_t>(block_);
-  HugePageVector<int> grown(n_blocks * static_cast<std::size_t>(2 * block_) + kSlotChunk, -1);
-  for (std::size_t c = 0; c < n_blocks; ++c) {
-    const int* from = blocks_.data() + c * static_cast<std::size_t>(block_);
-    int* to = grown.data() + c * static_cast<std::size_t>(2 * block_);
-    to[0] = from[0];
-    for (int k = 1; k <= from[0]; ++k) {
-      to[k] = from[k];
-      slot_of_[static_cast<std::size_t>(to[k])] = static_cast<int>(to + k - grown.data());
-    }
+  // i joins the end of the cell's ring (the order a block appended in).
+  int& head = head_[static_cast<std::size_t>(cell)];
+  CellLink& joining = cell_link_[static_cast<std::size_t>(i)];
+  if (head == kEmptyHead) {
+    joining = {i, i};
+    head = i;
+    return;
   }
-  blocks_.swap(grown);
-  block_ *= 2;
-  candidates_.assign(27 * static_cast<std::size_t>(block_) + kScanLanes, -1);
+  const int first = head >= 0 ? head : first_of(head);
+  CellLink& front = cell_link_[static_cast<std::size_t>(first)];
+  const int last = front.prev;
+  joining = {first, last};
+  cell_link_[static_cast<std::size_t>(last)].next = i;
+  front.prev = i;
+  head = several_head(first);
+}
+
+void EventDrivenCollider::unbin(int i, int cell) {
+  int& head = head_[static_cast<std::size_t>(cell)];
+  if (head == i) {  // its cell's only particle
+    head = kEmptyHead;
+    return;
+  }
+  // The ring's last particle takes i's place (as a block's last slot filled the hole), so the
+  // order of the rest is what it was.
+  int first = first_of(head);
+  CellLink& front = cell_link_[static_cast<std::size_t>(first)];
+  const int last = front.prev;
+  const int before_last = cell_link_[static_cast<std::size_t>(last)].prev;
+  cell_link_[static_cast<std::size_t>(before_last)].next = first;
+  front.prev = before_last;
+  if (last != i) {
+    const CellLink around = cell_link_[static_cast<std::size_t>(i)];
+    const int prev = around.prev == i ? last : around.prev;  // i was alone once last left
+    const int next = around.next == i ? last : around.next;
+    cell_link_[static_cast<std::size_t>(last)] = {next, prev};
+    cell_link_[static_cast<std::size_t>(prev)].next = last;
+    cell_link_[static_cast<std::size_t>(next)].prev = last;
+    if (first == i) first = last;
+  }
+  head = cell_link_[static_cast<std::size_t>(first)].next == first ? first : several_head(first);
+}
+
+void EventDrivenCollider::grow_candidates() {
+  candidates_.resize(2 * candidates_.size(), -1);
   columns_.resize(candidates_.size());
   candidate_lines_.resize(candidates_.size());
 }
@@ -258,7 +267,7 @@ int EventDrivenCollider::gather_adjacent(const std::array<int, 3>& c, int layer)
 int EventDrivenCollider::gather(const int* cells, int count) {
   // Most cells hold at most one particle, which their head word names: it is written out and
   // the write position advanced by one if the cell is occupied, without a branch. The cells
-  // holding several (about one in eleven in the hard-sphere gas) are marked, and their blocks
+  // holding several (about one in eleven in the hard-sphere gas) are marked, and their rings
   // appended after.
   const int* heads = head_.data();
   int* out = candidates_.data();
@@ -270,22 +279,23 @@ int EventDrivenCollider::gather(const int* cells, int count) {
     gathered += head >= 0 ? 1 : 0;
     several |= static_cast<std::uint32_t>(head < kEmptyHead) << k;
   }
-  return append_blocks(cells, several, gathered);
+  return append_rings(cells, several, gathered);
 }
 
-int EventDrivenCollider::append_blocks(const int* cells, std::uint32_t several, int gathered) {
-  // The first chunk after the occupancy is copied whole, the rest only for the rare cell fuller
-  // than one chunk. candidates_ holds 27 blocks, and blocks_ one spare chunk, so every copy fits.
-  int* out = candidates_.data();
+int EventDrivenCollider::append_rings(const int* cells, std::uint32_t several, int gathered) {
+  // Each ring is walked from its first particle, whose link also names the last: a cell of two
+  // (most of those holding several) costs one load. candidates_ keeps room for the vector stores
+  // past the end (kCandidateSlack).
   for (; several != 0; several &= several - 1) {
-    const int* block = blocks_.data() + cells[std::countr_zero(several)] * block_;
-    const int occupied = block[0];
-    std::memcpy(out + gathered, block + 1, kSlotChunk * sizeof(int));
-    if (occupied > kSlotChunk) {
-      std::memcpy(out + gathered + kSlotChunk, block + 1 + kSlotChunk,
-                  static_cast<std::size_t>(occupied - kSlotChunk) * sizeof(int));
+    const int first = first_of(head_[static_cast<std::size_t>(cells[std::countr_zero(several)])]);
+    const CellLink front = cell_link_[static_cast<std::size_t>(first)];
+    if (static_cast<std::size_t>(gathered) + 2 + kCandidateSlack > candidates_.size()) grow_candidates();
+    candidates_[static_cast<std::size_t>(gathered++)] = first;
+    for (int k = front.next; k != front.prev; k = cell_link_[static_cast<std::size_t>(k)].next) {
+      if (static_cast<std::size_t>(gathered) + 2 + kCandidateSlack > candidates_.size()) grow_candidates();
+      candidates_[static_cast<std::size_t>(gathered++)] = k;
     }
-    gathered += occupied;
+    candidates_[static_cast<std::size_t>(gathered++)] = front.prev;
   }
   return gathered;
 }
@@ -334,7 +344,7 @@ constexpr std::array<std::uint64_t, 256> kPackedLanes = [] {
     gathered += std::popcount(single);
     several |= full << k;
   }
-  return append_blocks(cells.data(), several, gathered);
+  return append_rings(cells.data(), several, gathered);
 }
 #endif
 
@@ -708,7 +718,6 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
         const int padded = (pz * padded_cells_[1] + py) * padded_cells_[0] + px;
         padded_cell_[static_cast<std::size_t>(padded)] = inside ? cell_index(cell) : empty_cell_;
       }
-  slot_of_.resize(n);
   flight_.resize(n);
   counter_.assign(n, 0u);
   pending_.assign(n, Pending{kNever, kNever, kNoPartner, 0u, 0, 0u, -kNever, {0, 0, 0}, false, 0.0});
@@ -728,16 +737,10 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
       pending_[i].cell[ax] = k >= dimension_ ? 0 : std::clamp(static_cast<int>(std::floor(s)), 0, cells_[ax] - 1);
     }
   }
-  // Blocks with room to spare over the fullest cell, so that growing mid-step is rare.
-  std::vector<int> occupancy(n_cells + 1, 0);  // and the empty cell
-  for (std::size_t i = 0; i < n; ++i) {
-    ++occupancy[static_cast<std::size_t>(cell_index(pending_[i].cell))];
-  }
-  const int fullest = *std::max_element(occupancy.begin(), occupancy.end());
-  block_ = kSlotChunk * ((fullest + fullest / 4 + 2 + kSlotChunk - 1) / kSlotChunk);
-  blocks_.assign((n_cells + 1) * static_cast<std::size_t>(block_) + kSlotChunk, 0);
-  head_.assign(n_cells + 1, kEmptyHead);
-  candidates_.assign(27 * static_cast<std::size_t>(block_) + kScanLanes, -1);
+  head_.assign(n_cells + 1, kEmptyHead);  // and the empty cell
+  cell_link_.resize(n);
+  // Room for 27 cells of two particles; append_rings() grows it for fuller neighbourhoods.
+  candidates_.assign(2 * 27 + kCandidateSlack, -1);
   columns_.resize(candidates_.size());
   candidate_lines_.resize(candidates_.size());
   for (std::size_t i = 0; i < n; ++i) bin(static_cast<int>(i), cell_index(pending_[i].cell));
@@ -773,19 +776,19 @@ EventStats EventDrivenCollider::advance_to(ParticleStore& store, const Domain& d
       int c = p.cell[ax] + step;
       if (c < 0) c += cells_[ax];
       if (c >= cells_[ax]) c -= cells_[ax];
-      // The old and the new cell's blocks: two cache misses for large N, started together.
+      // The old and the new cell's head words and i's ring link, started together.
+      const int left_cell = cell_index(p.cell);
       std::array<int, 3> entered = p.cell;
       entered[ax] = c;
-      __builtin_prefetch(&blocks_[static_cast<std::size_t>(cell_index(entered) * block_)]);
-      __builtin_prefetch(&blocks_[static_cast<std::size_t>(slot_of_[a])]);
+      __builtin_prefetch(&head_[static_cast<std::size_t>(cell_index(entered))]);
+      __builtin_prefetch(&head_[static_cast<std::size_t>(left_cell)]);
+      __builtin_prefetch(&cell_link_[a]);
       sync(i, now_);
-      unbin(i);
+      unbin(i, left_cell);
       p.cell[ax] = c;
       // Snap onto the shared face (wrapped) so the new cell's exit test starts exactly at 0.
       flight_[a].position[axis] = lo_[axis] + (step > 0 ? c : c + 1) * cell_size_[ax];
-      const int new_cell = cell_index(p.cell);
-      if (blocks_[static_cast<std::size_t>(new_cell * block_)] == block_ - 1) grow_cells();
-      bin(i, new_cell);
+      bin(i, cell_index(p.cell));
       ++stats.cell_crossings;
       const bool stale = p.partner >= 0 && counter_[static_cast<std::size_t>(p.partner)] != p.partner_count;
       stats.stale_events += stale ? 1 : 0;

@@ -17,12 +17,14 @@
 // full rescan of that particle when its time comes. Impulses: CollisionImpulse.hpp.
 //
 // Speed (the pair scan is most of the work; bench/bench_hardsphere.cpp measures it): each cell
-// owns a fixed block of ints, its occupancy followed by its particles' indices, and a head word
-// that names its particle when it holds exactly one (most occupied cells). A scan finds the
+// has a head word that names its particle when it holds exactly one (most occupied cells), and
+// otherwise is empty or names the first of its particles' ring (a circular list through a dense
+// per-particle array of links, 8 bytes a particle). A scan finds the
 // adjacent cells (from a grid padded with one layer of wrapped or empty cells, or, for interior
 // cells of large grids, by index arithmetic), gathers their particles from the head words
-// (4 bytes a cell, which mostly stay in cache), then appends the blocks of the few cells holding
-// several (no list chasing), and takes all contact times in one pass without data-dependent
+// (4 bytes a cell, which mostly stay in cache), then appends the rings of the few cells holding
+// several (the first's link names the second and the last: a pair, most of them, is one load),
+// and takes all contact times in one pass without data-dependent
 // branches (minimum image and "never" by selects). Where the machine has AVX2 (x86-64, picked
 // at run time) the head words are gathered eight at a time and the occupied ones packed by a
 // permutation from a table; the pass reads four candidates' Flight lines and transposes them in
@@ -32,13 +34,11 @@
 // states are copied into columns and the loop left to the compiler's vectoriser. Every path does
 // the arithmetic of ballistic_contact_time_or_never in the same order (no FMA), and the earliest
 // candidate is the first at the minimum in one fixed candidate order: none of this changes a
-// result (the vector and portable paths are compared bitwise by a test). A cell that overflows
-// its block doubles every block (rare: blocks start with room above the fullest cell at
-// binning). For large N every event's reads are cache misses, so what an event touches of a
+// result (the vector and portable paths are compared bitwise by a test). For large N every event's reads are cache misses, so what an event touches of a
 // particle is packed into one line each (Flight, Pending, Spin), the large arrays sit on huge
 // pages (core/HugePageAllocator.hpp), and the lines an event will need are requested together
 // as soon as they are known (a collision's partner's lines and calendar entry, a crossing's two
-// cell blocks): at N = 97 556 these took bench_hardsphere from 0.40 M to about 0.49 M
+// cells): at N = 97 556 these took bench_hardsphere from 0.40 M to about 0.49 M
 // collisions/s, and the head words (which spare the scan 6 MB of blocks there) a further 15 %
 // on a later machine (medians of five alternating runs: 0.49 M -> 0.57 M).
 // Stop 40 (gather by vector, the kernel variants, the vector crossing time, the scan's fixed
@@ -94,6 +94,13 @@
 // k/s), the partner's neighbourhood prefetched before scanning the first particle (1.14-1.27 M
 // against 1.32-1.40 M, 420-462 against 495-497 k/s): the gathers' own loads stall. Kept:
 // frictionless collisions leave the Spin lines alone (468-532 -> 467-564 k/s, within the noise).
+// Stop 43 (an EPYC VM with 1 MB L2 and 32 MB L3 reported; a pointer chase on huge pages: 20 ns
+// at 8 MB, 68 ns at 16, 105 ns at 24): each cell's fixed block of ints (occupancy, then its
+// particles: 6.2 MB at N = 97 556, and grown for every cell when one overflowed) replaced by the
+// rings, in the blocks' order (outputs bitwise as before). perf then put a third of the gather
+// on the rings' dependent loads; taking the last from the first's link left one load for a
+// pair. A B A rounds (bench_hardsphere, medians of two, five rounds): N = 97 556 1.04-1.20
+// times the block build (median 1.11), N = 1372 0.98-1.02.
 #include <array>
 #include <cstdint>
 #include <vector>
@@ -155,14 +162,19 @@ class EventDrivenCollider {
  private:
   static constexpr int kNoPartner = -1000;  ///< partners >= 0 are particles, -1 - face are walls
   static constexpr std::uint32_t kBurstLimit = 256;  ///< collisions of one particle a few ulps apart
-  static constexpr int kSlotChunk = 8;  ///< gather() copies blocks in chunks of this many slots
   static constexpr int kScanLanes = 4;  ///< scan() pads its candidates to a multiple of this
   static constexpr std::size_t kCachedPaddedCells = 1 << 16;  ///< 256 KiB of cell indices
   static constexpr int kEmptyHead = -1;  ///< head_ of an empty cell
-  /// head_ of a cell holding `occupied` particles, `first` the one in its block's first slot.
-  static constexpr int head_word(int occupied, int first) {
-    return occupied == 1 ? first : kEmptyHead - occupied;
-  }
+  /// head_ of a cell holding several particles, `first` the first of its ring.
+  static constexpr int several_head(int first) { return kEmptyHead - 1 - first; }
+  static constexpr int first_of(int several) { return kEmptyHead - 1 - several; }
+  /// Room candidates_ keeps past the candidates gathered: gather_avx2() stores eight at a time,
+  /// scan() pads to a multiple of kScanLanes.
+  static constexpr std::size_t kCandidateSlack = 8;
+  /// A particle's neighbours in its cell's ring (a circular list, in the order of arrival).
+  struct CellLink {
+    int next, prev;
+  };
 
   /// Compact per-particle flight state (one cache line): what the pair scan reads, as two rows
   /// of four doubles (contact_times_avx2() loads them whole).
@@ -211,9 +223,11 @@ class EventDrivenCollider {
   int gather_adjacent(const std::array<int, 3>& c, int layer);
   /// gather_adjacent()'s work on a list of `count` cells.
   int gather(const int* cells, int count);
-  /// Appends the blocks of the cells k of `cells` whose bit k of `several` is set (cells holding
+  /// Appends the rings of the cells k of `cells` whose bit k of `several` is set (cells holding
   /// several particles) to the `gathered` candidates; returns the new count.
-  int append_blocks(const int* cells, std::uint32_t several, int gathered);
+  int append_rings(const int* cells, std::uint32_t several, int gathered);
+  /// Doubles candidates_ and the scan's scratch with it.
+  void grow_candidates();
   /// Updates p with the earliest contact of i (at x, moving with v) with the first `count`
   /// candidates; `imaged`: whether a candidate may need a periodic image (needs_image()).
   void scan(int i, int count, const Vec3& x, const Vec3& v, bool imaged, Pending& p);
@@ -250,11 +264,10 @@ class EventDrivenCollider {
   int gather_avx2(int base, const int* offsets, int count, bool padded);
   /// next_crossing() without acceleration, the three axes in one vector.
   double next_crossing_avx2(const Pending& p, const Vec3& x, const Vec3& v, int* face) const;
-  /// Puts particle i into `cell` (its block must have room: grow_cells() first) or takes it out.
+  /// Puts particle i at the end of `cell`'s ring, or takes it out of it (the ring's last
+  /// particle taking its place).
   void bin(int i, int cell);
-  void unbin(int i);
-  /// Doubles every cell's block, keeping each cell's order.
-  void grow_cells();
+  void unbin(int i, int cell);
   int padded_index(const std::array<int, 3>& c) const;
   int cell_index(const std::array<int, 3>& c) const;
   /// Time from now until particle i leaves its cell, and across which face; +inf if never.
@@ -285,14 +298,12 @@ class EventDrivenCollider {
   /// no Spin line (one cache miss per particle less for large N).
   bool frictionless_ = false;
   HugePageVector<std::uint32_t> counter_;       ///< collisions so far (stale-candidate test)
-  int block_ = 8;                            ///< ints per cell block, a multiple of kSlotChunk
-  HugePageVector<int> blocks_;                  ///< per cell: occupancy, then particles; spare chunk
-  HugePageVector<int> slot_of_;                 ///< index into blocks_ of each particle
-  /// Per cell (and the empty one): the particle if it holds exactly one, else kEmptyHead minus
-  /// the occupancy. What a scan reads of a cell: 4 bytes (against a block of 32 or more, so they
-  /// mostly stay in cache), and the cell's block only where it holds several.
+  /// Per cell (and the empty one): the particle if it holds exactly one, kEmptyHead if none,
+  /// else several_head() of the first of its ring. What a scan reads of a cell: 4 bytes, which
+  /// mostly stay in cache, and the ring's links only where it holds several.
   HugePageVector<int> head_;
-  std::vector<int> candidates_;              ///< scratch of gather(): 27 whole blocks and padding
+  HugePageVector<CellLink> cell_link_;          ///< per particle: its cell's ring
+  std::vector<int> candidates_;              ///< scratch of gather(), kCandidateSlack past them
   CandidateColumns columns_;                 ///< scratch of scan()
   ScanFrame scan_frame_{};                   ///< scan()'s, the box's part set by initialize()
   /// contact_times_avx2()'s scratch: the candidates' Flight line addresses.
