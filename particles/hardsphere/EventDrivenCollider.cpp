@@ -147,7 +147,7 @@ double EventDrivenCollider::next_crossing(int i, const Vec3& x, const Vec3& v, i
   const __m256d zero = _mm256_setzero_pd(), sign = _mm256_set1_pd(-0.0), never = _mm256_set1_pd(kNever);
   const __m256d position = _mm256_setr_pd(x[0], x[1], x[2], 0.0);
   const __m256d rate = _mm256_setr_pd(v[0], v[1], v[2], 0.0);
-  const __m128i cell = _mm_setr_epi32(p.cell[0], p.cell[1], p.cell[2], 0);
+  const __m128i cell = _mm_setr_epi32(p.cell[0], p.cell[1], p.cell[2], 0);  // widened
   const __m256d lo = _mm256_loadu_pd(crossing_lo_.data()), size = _mm256_loadu_pd(crossing_size_.data());
   const __m256d low_face = _mm256_add_pd(lo, _mm256_mul_pd(_mm256_cvtepi32_pd(cell), size));
   const __m256d high_face =
@@ -572,7 +572,7 @@ void EventDrivenCollider::predict(int i, int layer) {
   const Vec3& a = acceleration_;
   const Vec3 x = fi.position + fi.velocity * tau + 0.5 * a * tau * tau;
   const Vec3 v = fi.velocity + a * tau;
-  const auto& c = p.cell;
+  const std::array<int, 3> c = cell_of(p);
   const bool fixed = p.fixed;
   if (layer < 0) {
     ++predictions_;
@@ -606,7 +606,7 @@ void EventDrivenCollider::predict(int i, int layer) {
   }
   int face = 0;
   p.crossing_time = now_ + next_crossing(i, x, v, &face);
-  p.crossing_face = face;
+  p.crossing_face = static_cast<std::uint8_t>(face);
 }
 
 void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain, double start_time) {
@@ -649,7 +649,9 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
     }
     periodic_[ax] = domain.periodic(k);
     if (periodic_[ax]) half_image_[ax] = 0.5 * length_[k];
-    cells_[ax] = std::max(1, static_cast<int>(std::floor(length_[k] / (2.0 * max_radius))));
+    // Wider cells than needed are only slower; Pending::cell holds 16 bits an axis.
+    cells_[ax] = static_cast<int>(
+        std::clamp(std::floor(length_[k] / (2.0 * max_radius)), 1.0, double{kMaxCellsPerAxis}));
     if (periodic_[ax] && cells_[ax] < 3) {
       throw std::invalid_argument("EventDrivenCollider: periodic axis " + std::to_string(k) +
                                   " must span at least three diameters");
@@ -720,21 +722,24 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
       }
   flight_.resize(n);
   counter_.assign(n, 0u);
-  pending_.assign(n, Pending{kNever, kNever, kNoPartner, 0u, 0, 0u, -kNever, {0, 0, 0}, false, 0.0});
+  pending_.assign(n, Pending{kNever, kNever, kNoPartner, 0u, {0, 0, 0}, 0, false});
+  inverse_mass_.resize(n);
+  burst_.assign(n, Burst{});
   spin_.resize(n);
   spinning_ = false;
   frictionless_ = settings_.law.friction == 0.0;
   for (std::size_t i = 0; i < n; ++i) {
     spin_[i] = Spin{store.angular_velocity[i], store.torque[i] * store.inverse_inertia(i), store.inverse_inertia(i)};
     pending_[i].fixed = store.is_fixed(i);
-    pending_[i].inverse_mass = store.inverse_mass(i);
+    inverse_mass_[i] = store.inverse_mass(i);
     spinning_ = spinning_ || !spin_[i].angular_acceleration.isZero(0.0);
     domain.wrap(store.position[i]);
     flight_[i] = Flight{store.position[i], now_, store.velocity[i], store.radius[i]};
     for (std::size_t ax = 0; ax < 3; ++ax) {
       const auto k = static_cast<int>(ax);
       const double s = (flight_[i].position[k] - lo_[k]) / cell_size_[ax];
-      pending_[i].cell[ax] = k >= dimension_ ? 0 : std::clamp(static_cast<int>(std::floor(s)), 0, cells_[ax] - 1);
+      pending_[i].cell[ax] = static_cast<std::uint16_t>(
+          k >= dimension_ ? 0 : std::clamp(static_cast<int>(std::floor(s)), 0, cells_[ax] - 1));
     }
   }
   head_.assign(n_cells + 1, kEmptyHead);  // and the empty cell
@@ -743,7 +748,7 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
   candidates_.assign(2 * 27 + kCandidateSlack, -1);
   columns_.resize(candidates_.size());
   candidate_lines_.resize(candidates_.size());
-  for (std::size_t i = 0; i < n; ++i) bin(static_cast<int>(i), cell_index(pending_[i].cell));
+  for (std::size_t i = 0; i < n; ++i) bin(static_cast<int>(i), cell_index(cell_of(pending_[i])));
   for (std::size_t i = 0; i < n; ++i) predict(static_cast<int>(i), -1);
   std::vector<double> keys(n);
   for (std::size_t i = 0; i < n; ++i) keys[i] = key(static_cast<int>(i));
@@ -773,22 +778,22 @@ EventStats EventDrivenCollider::advance_to(ParticleStore& store, const Domain& d
       const int axis = face / 2;
       const auto ax = static_cast<std::size_t>(axis);
       const int step = face % 2 == 0 ? -1 : 1;
-      int c = p.cell[ax] + step;
+      int c = p.cell[ax] + step;  // as int: -1 wraps below
       if (c < 0) c += cells_[ax];
       if (c >= cells_[ax]) c -= cells_[ax];
       // The old and the new cell's head words and i's ring link, started together.
-      const int left_cell = cell_index(p.cell);
-      std::array<int, 3> entered = p.cell;
+      const int left_cell = cell_index(cell_of(p));
+      std::array<int, 3> entered = cell_of(p);
       entered[ax] = c;
       __builtin_prefetch(&head_[static_cast<std::size_t>(cell_index(entered))]);
       __builtin_prefetch(&head_[static_cast<std::size_t>(left_cell)]);
       __builtin_prefetch(&cell_link_[a]);
       sync(i, now_);
       unbin(i, left_cell);
-      p.cell[ax] = c;
+      p.cell[ax] = static_cast<std::uint16_t>(c);
       // Snap onto the shared face (wrapped) so the new cell's exit test starts exactly at 0.
       flight_[a].position[axis] = lo_[axis] + (step > 0 ? c : c + 1) * cell_size_[ax];
-      bin(i, cell_index(p.cell));
+      bin(i, cell_index(entered));
       ++stats.cell_crossings;
       const bool stale = p.partner >= 0 && counter_[static_cast<std::size_t>(p.partner)] != p.partner_count;
       stats.stale_events += stale ? 1 : 0;
@@ -808,17 +813,21 @@ EventStats EventDrivenCollider::advance_to(ParticleStore& store, const Domain& d
     // angular velocities do not enter it (Spin lines are left alone, Body's stay zero).
     const bool spin = !frictionless_;
     if (spin) __builtin_prefetch(&spin_[a]);
+    __builtin_prefetch(&inverse_mass_[a]);
     if (pair) {
       __builtin_prefetch(&flight_[b]);
       __builtin_prefetch(&pending_[b]);
+      __builtin_prefetch(&inverse_mass_[b]);
       if (spin) __builtin_prefetch(&spin_[b]);
       calendar_.prefetch(partner);
     }
+    // Each particle's previous event (collision or crossing), for the collapse detector below.
+    std::array<double, 2> previous_event{flight_[a].clock, 0.0};
     sync(i, now_);
     auto body = [&](std::size_t k) {
       Body bk;
       bk.velocity = flight_[k].velocity;
-      bk.inverse_mass = pending_[k].inverse_mass;
+      bk.inverse_mass = inverse_mass_[k];
       bk.radius = flight_[k].radius;
       if (spin) {
         bk.angular_velocity = spin_[k].angular_velocity;
@@ -830,6 +839,7 @@ EventStats EventDrivenCollider::advance_to(ParticleStore& store, const Domain& d
     Body body_b;
     Vec3 normal = Vec3::Zero();
     if (pair) {
+      previous_event[1] = flight_[b].clock;
       sync(partner, now_);
       body_b = body(b);
       normal = domain.separation(flight_[a].position, flight_[b].position).normalized();
@@ -839,18 +849,21 @@ EventStats EventDrivenCollider::advance_to(ParticleStore& store, const Domain& d
     }
     // Inelastic collapse (infinitely many collisions before a finite time, e.g. a ball with
     // e < 1 settling on a floor) shows as bursts of collisions a few ulps apart: report it.
+    // A burst's record is read only when the particle's previous event lies within the span (a
+    // burst's start is no later than that event): elsewhere the burst is over, and the next
+    // collision within the span starts a new record, one collision late.
     const double burst_span = 1e4 * std::numeric_limits<double>::epsilon() * std::max(1.0, std::abs(now_));
-    for (int member = 0; member < (pair ? 2 : 1); ++member) {
-      const std::size_t m = member == 0 ? a : b;
-      Pending& burst = pending_[m];
-      if (now_ - burst.burst_start <= burst_span) {
-        if (++burst.burst_count > kBurstLimit) {
+    for (std::size_t member = 0; member < (pair ? 2u : 1u); ++member) {
+      if (now_ - previous_event[member] > burst_span) continue;
+      Burst& burst = burst_[member == 0 ? a : b];
+      if (now_ - burst.start <= burst_span) {
+        if (++burst.count > kBurstLimit) {
           throw NumericalFailure("hard-sphere collisions piled up at one instant (inelastic "
                                  "collapse or a resting contact)", "EventDrivenCollider", now_, -1);
         }
       } else {
-        burst.burst_start = now_;
-        burst.burst_count = 0;
+        burst.start = now_;
+        burst.count = 0;
       }
     }
     const CollisionImpulse impulse = collide(body_a, body_b, normal, settings_.law);

@@ -103,6 +103,7 @@
 // times the block build (median 1.11), N = 1372 0.98-1.02.
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 #include "core/HugePageAllocator.hpp"
@@ -185,21 +186,27 @@ class EventDrivenCollider {
     double radius;
   };
   static_assert(sizeof(Vec3) == 3 * sizeof(double));
-  /// The rest of what an event reads and writes of its particle, in one cache line: its pending
-  /// events (earliest predicted collision, next cell crossing), its cell, and the collapse
-  /// detector's burst. (The collision counters stay a dense array of their own: every scan
-  /// reads its candidates' counters, which then fit in cache, as these lines would not.)
-  struct alignas(64) Pending {
+  /// The rest of what every event reads and writes of its particle, in half a cache line: its
+  /// pending events (earliest predicted collision, next cell crossing) and its cell. (The
+  /// collision counters stay a dense array of their own: every scan reads its candidates'
+  /// counters, which then fit in cache, as these lines would not.)
+  struct alignas(32) Pending {
     double collision_time;
     double crossing_time;
     int partner;
     std::uint32_t partner_count;
-    int crossing_face;  ///< 2 axis + (0 low, 1 high)
-    std::uint32_t burst_count;
-    double burst_start;  ///< collapse detection: start of the current burst of collisions
-    std::array<int, 3> cell;
-    bool fixed;  ///< immovable (ParticleStore::is_fixed)
-    double inverse_mass;  ///< here, not in Spin: every collision reads it
+    std::array<std::uint16_t, 3> cell;  ///< initialize() keeps cells_ within kMaxCellsPerAxis
+    std::uint8_t crossing_face;         ///< 2 axis + (0 low, 1 high)
+    bool fixed;                         ///< immovable (ParticleStore::is_fixed)
+  };
+  static_assert(sizeof(Pending) == 32);
+  static constexpr int kMaxCellsPerAxis = 65535;
+  static std::array<int, 3> cell_of(const Pending& p) { return {p.cell[0], p.cell[1], p.cell[2]}; }
+  /// The collapse detector's record of a particle's current burst of collisions a few ulps
+  /// apart: read only when a collision comes within that span of the particle's previous event.
+  struct Burst {
+    double start = -std::numeric_limits<double>::infinity();
+    std::uint32_t count = 0;
   };
   /// What a collision with friction reads and writes of its particle besides Flight and
   /// Pending, in one cache line: the store's angular velocity (authoritative while events are
@@ -293,6 +300,8 @@ class EventDrivenCollider {
   HugePageVector<Flight> flight_;               ///< authoritative x, v while events are pending
   HugePageVector<Pending> pending_;
   HugePageVector<Spin> spin_;
+  HugePageVector<double> inverse_mass_;  ///< every collision reads its particles' (8 bytes each)
+  HugePageVector<Burst> burst_;
   bool spinning_ = false;  ///< whether any particle has an angular acceleration
   /// Whether collisions leave angular velocities alone (no friction): then they read and write
   /// no Spin line (one cache miss per particle less for large N).
