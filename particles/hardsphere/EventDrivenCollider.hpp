@@ -95,12 +95,21 @@
 // against 1.32-1.40 M, 420-462 against 495-497 k/s): the gathers' own loads stall. Kept:
 // frictionless collisions leave the Spin lines alone (468-532 -> 467-564 k/s, within the noise).
 // Stop 43 (an EPYC VM with 1 MB L2 and 32 MB L3 reported; a pointer chase on huge pages: 20 ns
-// at 8 MB, 68 ns at 16, 105 ns at 24): each cell's fixed block of ints (occupancy, then its
-// particles: 6.2 MB at N = 97 556, and grown for every cell when one overflowed) replaced by the
-// rings, in the blocks' order (outputs bitwise as before). perf then put a third of the gather
-// on the rings' dependent loads; taking the last from the first's link left one load for a
-// pair. A B A rounds (bench_hardsphere, medians of two, five rounds): N = 97 556 1.04-1.20
-// times the block build (median 1.11), N = 1372 0.98-1.02.
+// at 8 MB, 68 ns at 16, 105 ns at 24; the L3 is shared with other tenants, and the rate at
+// N = 97 556 swings between about 0.45 and 1.1 M/s with their load): what the large gas touches
+// went from about 24 to 16.5 MB, outputs bitwise as before. Each cell's fixed block of ints
+// (occupancy, then its particles: 6.2 MB at N = 97 556, grown for every cell when one
+// overflowed) gave way to the rings (0.8 MB), in the blocks' order; perf then put a third of
+// the gather on the rings' dependent loads, and taking the last from the first's link left one
+// load for a pair. Pending went from 64 to 32 bytes: the cell in 16-bit coordinates, the inverse
+// mass in a dense array, the collapse detector's burst record in one read only when a collision
+// follows the particle's previous event within the burst span. bench_hardsphere, 30
+// repetitions each in alternating rounds (k/s): N = 97 556 median 529 -> 577, 90th percentile
+// 629 -> 670; N = 1372 median 1412-1440 -> 1389-1411 (within the rounds' spread). Without gain
+// (medians within the noise, so left out): the calendar's next buckets' entries prefetched as a
+// bucket is entered (perf: top() 9.4% -> 6.7% of the time, the rate unchanged), and a
+// collision's two calendar updates moved after both rescans with their bucket heads prefetched
+// (update() stayed at 10%, most of it that head's load).
 #include <array>
 #include <cstdint>
 #include <limits>
