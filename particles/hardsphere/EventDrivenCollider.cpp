@@ -663,6 +663,13 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
     scan_frame_.length[ax] = length_[static_cast<int>(ax)];
     scan_frame_.half_image[ax] = half_image_[ax];
   }
+  // Cells are numbered by int (with the padded grid's border): spheres so small against the
+  // box that this overflows would need more memory for empty cells than any machine has.
+  const std::int64_t cell_count = std::int64_t{cells_[0] + 2} * (cells_[1] + 2) * (cells_[2] + 2);
+  if (cell_count > std::numeric_limits<int>::max() / 2) {
+    throw std::invalid_argument("EventDrivenCollider: " + std::to_string(cell_count) +
+                                " cells of one largest diameter: the box is too large for its spheres");
+  }
   const auto n_cells = static_cast<std::size_t>(cells_[0] * cells_[1] * cells_[2]);
   // Adjacent cells (itself included) at fixed positions: dz, dy, dx from -1 to 1, dz only 0 in
   // 2D. They are read from a grid padded by one layer of cells, whose border names the cell it

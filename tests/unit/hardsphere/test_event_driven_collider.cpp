@@ -119,6 +119,16 @@ TEST(EventDrivenCollider, RejectsUnequalAccelerations) {
   EXPECT_THROW(collider.initialize(s, cube(10, gp::FaceKind::kPeriodic)), std::invalid_argument);
 }
 
+// Two unit spheres in a box 10^5 diameters wide: 10^15 cells would overflow their numbering.
+TEST(EventDrivenCollider, RejectsBoxesOfMoreCellsThanCanBeNumbered) {
+  gp::ParticleStore s;
+  add_sphere(s, Vec3(0, 0, 0), Vec3(1, 0, 0));
+  add_sphere(s, Vec3(2, 0, 0), Vec3::Zero());
+  hs::EventDrivenCollider collider;
+  EXPECT_THROW(collider.initialize(s, cube(1e5, gp::FaceKind::kWall)), std::invalid_argument);
+  EXPECT_NO_THROW(collider.initialize(s, cube(100, gp::FaceKind::kWall)));  // 100^3 cells
+}
+
 struct Comparison {
   std::size_t collisions = 0;
   double worst_time = 0, worst_state = 0;
