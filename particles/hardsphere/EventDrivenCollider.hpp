@@ -109,7 +109,11 @@
 // (medians within the noise, so left out): the calendar's next buckets' entries prefetched as a
 // bucket is entered (perf: top() 9.4% -> 6.7% of the time, the rate unchanged), and a
 // collision's two calendar updates moved after both rescans with their bucket heads prefetched
-// (update() stayed at 10%, most of it that head's load).
+// (update() stayed at 10%, most of it that head's load); the head words of i's and the
+// partner's rescans prefetched, row by row, as soon as their cells are known (the gather's share
+// in perf unchanged at 13-14%, medians 546 against 577 k/s); the scalar gather instead of the
+// vector one on this AMD machine, whose vector gathers perf blames for 17% of the time at
+// N = 1372 (1375 against 1416 k/s there: the vector gather stays).
 #include <array>
 #include <cstdint>
 #include <limits>
