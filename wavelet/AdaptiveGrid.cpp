@@ -1408,14 +1408,13 @@ std::vector<double> AdaptiveGrid<Dim>::field_scales(const ThresholdConfig& th,
   // anyway (their own read would come from L2 or L3: after a step the data are not in L1), and
   // give the interior's magnitude in the same read.
   const bool ahead = ranges && tested.size() == local_blocks() && fields_computed_.size() == local_blocks();
-  maxima_ahead_.assign(ahead ? F * local_blocks() : 0, {std::nan(""), std::nan("")});
+  maxima_ahead_.assign(ahead ? F * local_blocks() : 0, DetailMaxima{std::nan(""), 0, 0});
   for (std::size_t f = 0; f < F; ++f)
     for (std::size_t s = 0; s < local_blocks(); ++s) {
       const double* u = data_[f].data() + s * block_volume_;
       if (!ranges || !range_bound_tried(s)) {  // the interiors only
         if (ahead && tested[s] && f < 32 && (fields_computed_[s] >> f & 1u)) {
-          const DetailMaxima found = detail_maxima(u, block_detail_stencils(s));
-          maxima_ahead_[f * local_blocks() + s] = {found.largest, found.largest_near};
+          const DetailMaxima& found = maxima_ahead_[f * local_blocks() + s] = detail_maxima(u, block_detail_stencils(s));
           local[f] = std::max(local[f], found.magnitude);
           continue;
         }
@@ -1508,15 +1507,11 @@ std::pair<bool, bool> AdaptiveGrid<Dim>::block_significance(std::size_t slot, co
       }
     }
     if (f < 32) fields_computed_[slot] |= 1u << f;
-    std::pair<double, double> maxima{std::nan(""), std::nan("")};
+    DetailMaxima maxima{std::nan(""), 0, 0};
     if (!maxima_ahead_.empty()) std::swap(maxima, maxima_ahead_[static_cast<std::size_t>(f) * local_blocks() + slot]);
-    if (std::isnan(maxima.first)) {
-      const DetailMaxima found = detail_maxima(block(f, slot).data(), block_detail_stencils(slot));
-      maxima = {found.largest, found.largest_near};
-    }
-    const auto [largest, largest_near] = maxima;
-    any = any || largest > threshold_any;
-    near = near || largest_near > threshold;
+    if (std::isnan(maxima.largest)) maxima = detail_maxima(block(f, slot).data(), block_detail_stencils(slot));
+    any = any || maxima.largest > threshold_any;
+    near = near || maxima.largest_near > threshold;
     if (any && near) first_field_[slot] = f;
   }
   if (try_bound && !bound_decided) bound_rest_[slot] = 8;

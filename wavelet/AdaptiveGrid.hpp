@@ -385,9 +385,9 @@ class AdaptiveGrid {
   /// block_significance: per local block, a bit per field whose detail maxima its last call
   /// computed (what field_scales computes ahead for the next, where the bound rests).
   mutable std::vector<std::uint32_t> fields_computed_;
-  /// Detail maxima field_scales computed ahead (field-major), NaN where none: block_significance
-  /// takes each once.
-  mutable std::vector<std::pair<double, double>> maxima_ahead_;
+  /// Detail maxima field_scales computed ahead (field-major), `largest` NaN where none:
+  /// block_significance takes each once.
+  mutable std::vector<DetailMaxima> maxima_ahead_;
 };
 
 template <int Dim>

@@ -184,6 +184,17 @@ Comparison compare_with_retrospective(hs::CollisionLaw law, bool gravity_and_wal
   return compare_with_retrospective(a, d, law);
 }
 
+/// What every comparison with the retrospective collider must show: enough collisions, the same
+/// sequence, and times and states equal to round-off.
+void expect_agreement(const char* what, const Comparison& c) {
+  std::printf("%s: %zu collisions, same order %d, worst time diff %.2e, state diff %.2e\n", what,
+              c.collisions, c.same_sequence, c.worst_time, c.worst_state);
+  EXPECT_GT(c.collisions, 300u);
+  EXPECT_TRUE(c.same_sequence);
+  EXPECT_LT(c.worst_time, 1e-10);
+  EXPECT_LT(c.worst_state, 1e-9);
+}
+
 // The AVX2 paths (where the machine has it: the pair scan in its four variants, the vector
 // gather of the adjacent cells, the unaccelerated crossing time) and the portable ones do the
 // same operations in the same order: the collision sequence and the final state are bitwise
@@ -254,18 +265,9 @@ TEST(EventDrivenCollider, VectorAndPortableScansAreBitwiseEqualWithoutAccelerati
 }
 
 TEST(EventDrivenCollider, AgreesWithRetrospectiveElasticGas) {
-  const Comparison c = compare_with_retrospective(hs::CollisionLaw{1.0, 0.0}, false);
-  std::printf("elastic gas: %zu collisions, same order %d, worst time diff %.2e, state diff %.2e\n",
-              c.collisions, c.same_sequence, c.worst_time, c.worst_state);
-  EXPECT_GT(c.collisions, 300u);
-  EXPECT_TRUE(c.same_sequence);
-  EXPECT_LT(c.worst_time, 1e-10);
-  EXPECT_LT(c.worst_state, 1e-9);
+  expect_agreement("elastic gas", compare_with_retrospective(hs::CollisionLaw{1.0, 0.0}, false));
 }
 
-// Without friction an impulse lies along the normal: spinning spheres keep their angular
-// velocities exactly, however many collisions (the general impulse algebra, n x (j n), would
-// leave round-off in them), while their velocities change.
 // One large sphere among small ones: the cells (one large diameter wide) hold a dozen particles
 // or more, whose rings are walked, cut and rejoined at every crossing. Event-driven and
 // retrospective must see the same collisions in the same order.
@@ -281,16 +283,13 @@ TEST(EventDrivenCollider, AgreesWithRetrospectiveInCrowdedCells) {
     if ((small.position[i] - centre).norm() < big + 0.7) continue;
     add_sphere(start, small.position[i], small.velocity[i]);
   }
-  const Comparison c = compare_with_retrospective(start, d, hs::CollisionLaw{0.95, 0.1});
-  std::printf("crowded cells (%zu spheres, 3^3 cells): %zu collisions, same order %d, worst time "
-              "diff %.2e, state diff %.2e\n", start.size(), c.collisions, c.same_sequence, c.worst_time,
-              c.worst_state);
-  EXPECT_GT(c.collisions, 300u);
-  EXPECT_TRUE(c.same_sequence);
-  EXPECT_LT(c.worst_time, 1e-10);
-  EXPECT_LT(c.worst_state, 1e-9);
+  std::printf("crowded cells: %zu spheres in 3^3 cells\n", start.size());
+  expect_agreement("crowded cells", compare_with_retrospective(start, d, hs::CollisionLaw{0.95, 0.1}));
 }
 
+// Without friction an impulse lies along the normal: spinning spheres keep their angular
+// velocities exactly, however many collisions (the general impulse algebra, n x (j n), would
+// leave round-off in them), while their velocities change.
 TEST(EventDrivenCollider, FrictionlessCollisionsLeaveSpinsExactlyAlone) {
   gp::ParticleStore s;
   gp::Domain d;
@@ -310,13 +309,7 @@ TEST(EventDrivenCollider, FrictionlessCollisionsLeaveSpinsExactlyAlone) {
 }
 
 TEST(EventDrivenCollider, AgreesWithRetrospectiveFrictionalGasUnderGravityWithWalls) {
-  const Comparison c = compare_with_retrospective(hs::CollisionLaw{0.9, 0.2}, true);
-  std::printf("frictional gas, gravity, walls: %zu events, same order %d, worst time diff %.2e, "
-              "state diff %.2e\n", c.collisions, c.same_sequence, c.worst_time, c.worst_state);
-  EXPECT_GT(c.collisions, 300u);
-  EXPECT_TRUE(c.same_sequence);
-  EXPECT_LT(c.worst_time, 1e-10);
-  EXPECT_LT(c.worst_state, 1e-9);
+  expect_agreement("frictional gas, gravity, walls", compare_with_retrospective(hs::CollisionLaw{0.9, 0.2}, true));
 }
 
 // 2D disks (I = m r^2 / 2) under gravity between walls, periodic in x, with friction: the two
