@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <bit>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -15,6 +16,8 @@
 #if defined(__x86_64__)
 #include <x86intrin.h>
 #endif
+
+#include <fmt/format.h>
 
 #include "core/Timers.hpp"
 #include "wavelet/BlockPrediction.hpp"
@@ -58,16 +61,67 @@ void for_field_groups(std::vector<std::vector<double>>& data, F&& f) {
   }
 }
 
+/// The distinct weights of a ghost plan, each numbered once: index_of(w) finds or adds w (an
+/// open-addressing table on the weight's bits, so a rebuild pays a few nanoseconds a term).
+/// Weight 1 is index kOne. A plan built on another takes its table over (build_ghost_plan),
+/// so the rows it copies keep their indices.
+class WeightTable {
+ public:
+  static constexpr std::uint16_t kOne = 0;
+  WeightTable() { index_of(1.0); }
+  double operator[](std::uint16_t index) const { return values_[index]; }
+  const double* data() const { return values_.data(); }
+  std::uint16_t index_of(double weight) {
+    const auto bits = std::bit_cast<std::uint64_t>(weight);
+    for (std::size_t at = slot(bits);; at = (at + 1) & (keys_.size() - 1)) {
+      if (index_[at] != kNone) {
+        if (keys_[at] == bits) return index_[at];
+        continue;
+      }
+      if (values_.size() >= kNone)
+        throw std::length_error("AdaptiveGrid: more than 65535 distinct ghost interpolation weights");
+      keys_[at] = bits;
+      index_[at] = static_cast<std::uint16_t>(values_.size());
+      values_.push_back(weight);
+      if (2 * values_.size() > keys_.size()) grow();
+      return static_cast<std::uint16_t>(values_.size() - 1);
+    }
+  }
+
+ private:
+  static constexpr std::uint16_t kNone = 0xffff;
+  std::size_t slot(std::uint64_t bits) const {
+    return static_cast<std::size_t>((bits * 0x9e3779b97f4a7c15ULL) >> 40) & (keys_.size() - 1);
+  }
+  void grow() {
+    const std::vector<double> values = std::move(values_);
+    keys_.assign(2 * keys_.size(), 0);
+    index_.assign(keys_.size(), kNone);
+    values_.clear();
+    for (const double w : values) index_of(w);
+  }
+  std::vector<double> values_;
+  std::vector<std::uint64_t> keys_ = std::vector<std::uint64_t>(256, 0);
+  std::vector<std::uint16_t> index_ = std::vector<std::uint16_t>(256, kNone);
+};
+
 }  // namespace
 
 template <int Dim>
 struct AdaptiveGrid<Dim>::GhostPlan {
   // One row per ghost point of the local blocks: its offset in a field array and its value as
   // a weighted sum of local values (local_*) and of values received from other ranks (remote_*).
-  std::vector<std::int64_t> dest;
+  std::vector<std::int32_t> dest;  // 32 bits, as local_src
   std::vector<std::int32_t> local_begin, remote_begin;
-  std::vector<std::int64_t> local_src;
-  std::vector<double> local_w;
+  // A local term's point: its index in the field arrays (32 bits: build_ghost_plan refuses a
+  // rank holding more points, blocks and scratch points together, than that can number).
+  std::vector<std::int32_t> local_src;
+  // A local term's weight, as its index in `weights`: a plan holds few distinct weights
+  // (products of the Deslauriers-Dubuc weights: 82 over the 2.1 million terms of a 3D sphere's
+  // grid), and a fill reads each term's weight, so 2 bytes instead of 8 (the plan is read from
+  // memory on every fill where it outgrows the caches).
+  std::vector<std::uint16_t> local_weight;
+  WeightTable weights;
   std::vector<std::int32_t> remote_src;  // index of a received point (times fields + field)
   std::vector<double> remote_w;
   // Per row: how many of its remote terms come before its local ones. A row's terms are in one
@@ -105,7 +159,7 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   /// Whether row k copies one value: one local term of weight 1, nothing remote.
   bool is_copy(std::size_t k) const {
     return remote_begin[k + 1] == remote_begin[k] && local_begin[k + 1] - local_begin[k] == 1 &&
-           local_w[static_cast<std::size_t>(local_begin[k])] == 1.0;
+           local_weight[static_cast<std::size_t>(local_begin[k])] == WeightTable::kOne;
   }
   // The rows again, sorted for filling: copies (one local term of weight 1, nothing remote:
   // same-level neighbours and injection from finer leaves, most ghosts), merged into runs of
@@ -113,7 +167,7 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   // sums; and the rows with remote terms. In two groups: 0, the ghosts within the stencil reach
   // (AdaptiveGrid::set_stencil_reach; all of them unless it is set), and 1, the others.
   struct CopyRun {
-    std::int64_t dest, src;
+    std::int32_t dest, src;  // field array indices (32 bits, as local_src)
     std::int32_t length;
     std::int32_t src_slot;  // the local block it reads (a run reads one block's row)
   };
@@ -124,6 +178,15 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   // Per list and stage (1, 2: index stage - 1), the rows summed from other ghost rows: filled
   // after everything else, stage by stage (their terms are all local).
   std::array<std::array<std::vector<std::int32_t>, 2>, 3> derived_rows;
+  // The weighted rows again, as a fill reads them: per list, its sums and its derived rows of
+  // stages 1 and 2 (kinds 0, 1, 2), each in its list's order, with their destinations and terms
+  // alongside. A fill then reads them in sequence, instead of reaching through the row numbers
+  // into the whole plan's rows and terms, where the copies' terms lie between theirs.
+  struct PackedRows {
+    std::vector<std::int32_t> dest, begin, src;
+    std::vector<std::uint16_t> weight;
+  };
+  std::array<std::array<PackedRows, 3>, 3> packed;
   // Per list 0 and 1 and per local block (and one past the last): where its entries begin in
   // copy_runs, sum_rows, remote_rows, derived_rows[.][0] and [.][1]. Each block's entries are
   // contiguous (no run spans two blocks), so a block whose rows are reused after an adaptation
@@ -147,7 +210,7 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   /// Empties every list, keeping its storage (a rebuild refills the plan it replaced last time).
   void clear() {
     auto empty = [](auto&... lists) { (lists.clear(), ...); };
-    empty(dest, local_begin, remote_begin, local_src, local_w, remote_src, remote_w, remote_lead, row_stage, kind,
+    empty(dest, local_begin, remote_begin, local_src, local_weight, remote_src, remote_w, remote_lead, row_stage, kind,
           block_scratch_begin, block_row_begin, block_dependency_begin, block_has_remote, block_rebuilt, block_curve,
           block_dependencies, local_src_slot, recv_rank, recv_first, recv_count, send_rank, send_first, send_count,
           send_src, send_buffer, recv_buffer, requests);
@@ -155,10 +218,12 @@ struct AdaptiveGrid<Dim>::GhostPlan {
     for (std::size_t list = 0; list < copy_runs.size(); ++list) {
       empty(copy_runs[list], sum_rows[list], remote_rows[list]);
       for (auto& stage : derived_rows[list]) stage.clear();
+      for (auto& rows : packed[list]) empty(rows.dest, rows.begin, rows.src, rows.weight);
     }
     for (auto& list : block_group_begin)
       for (auto& begin : list) begin.clear();
     reused_from.clear();
+    weights = WeightTable{};
     grouped_reach = {-1, -1, -1};
     empty(fill_when_begin, fill_when_written, fill_after_messages);
   }
@@ -528,6 +593,14 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
   plan.block_dependency_begin.push_back(0);
   plan.block_scratch_begin.push_back(0);
   plan.scratch_start = static_cast<std::int64_t>(local_keys_.size() * block_volume_);
+  // The plan numbers points in 32 bits (GhostPlan::local_src).
+  auto refuse_beyond_32_bits = [](std::int64_t points) {
+    if (points > std::numeric_limits<std::int32_t>::max())
+      throw std::length_error(fmt::format("AdaptiveGrid: {} points (blocks and scratch) on one rank, more than a ghost plan "
+                                          "numbers (2^31 - 1): use more ranks or fewer levels",
+                                          points));
+  };
+  refuse_beyond_32_bits(plan.scratch_start);
   std::int64_t scratch_points = 0;  // so far, over the blocks done
   // Requests to other ranks: (leaf, point) -> position in that rank's list.
   std::vector<std::map<std::pair<std::size_t, std::int64_t>, int>> wanted(static_cast<std::size_t>(ranks_));
@@ -595,7 +668,8 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
     plan.remote_begin.reserve(previous->remote_begin.size());
     plan.local_src.reserve(previous->local_src.size());
     plan.local_src_slot.reserve(previous->local_src_slot.size());
-    plan.local_w.reserve(previous->local_w.size());
+    plan.local_weight.reserve(previous->local_weight.size());
+    plan.weights = previous->weights;  // the rows copied from it keep their weights' indices
     plan.block_dependencies.reserve(previous->block_dependencies.size());
   }
 
@@ -622,9 +696,9 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
           q[static_cast<std::size_t>(a)] = static_cast<int>(rest % ubs) + g;
           rest /= ubs;
         }
-        plan.local_src.push_back(static_cast<std::int64_t>((leaf - first_leaf_) * block_volume_) + shape.index(q));
+        plan.local_src.push_back(static_cast<std::int32_t>((leaf - first_leaf_) * block_volume_ + static_cast<std::size_t>(shape.index(q))));
         plan.local_src_slot.push_back(static_cast<std::int32_t>(leaf - first_leaf_));
-        plan.local_w.push_back(w);
+        plan.local_weight.push_back(plan.weights.index_of(w));
       } else {
         auto& list = wanted[static_cast<std::size_t>(who)];
         const auto [it, added] = list.try_emplace({leaf, terms[t].point}, static_cast<int>(list.size()));
@@ -672,7 +746,7 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
         own = resolver.last().level < level;
       }
       if (own) {
-        plan.local_src.push_back(static_cast<std::int64_t>(slot * block_volume_) + shape.index(at));
+        plan.local_src.push_back(static_cast<std::int32_t>(slot * block_volume_ + static_cast<std::size_t>(shape.index(at))));
         plan.local_src_slot.push_back(static_cast<std::int32_t>(slot));
       } else {
         const std::size_t cell = scratch_cell(at);
@@ -681,10 +755,10 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
           scratch.emplace_back(at, point);
         }
         const auto q = static_cast<std::size_t>(scratch_at[cell]);
-        plan.local_src.push_back(plan.scratch_start + scratch_points + static_cast<std::int64_t>(q));
+        plan.local_src.push_back(static_cast<std::int32_t>(plan.scratch_start + scratch_points + static_cast<std::int64_t>(q)));
         plan.local_src_slot.push_back(GhostPlan::kScratchSlot);
       }
-      plan.local_w.push_back(line.weight[mu]);
+      plan.local_weight.push_back(plan.weights.index_of(line.weight[mu]));
     }
     plan.row_stage[row] = static_cast<std::uint8_t>(odd_axes - 1);
     return true;
@@ -710,24 +784,24 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
       plan.row_stage.insert(plan.row_stage.end(), old.row_stage.begin() + static_cast<std::ptrdiff_t>(k0),
                             old.row_stage.begin() + static_cast<std::ptrdiff_t>(k1));
       for (std::size_t k = k0; k < k1; ++k)
-        plan.dest[rows + k - k0] = old.dest[k] + (old.dest[k] >= old.scratch_start ? scratch_shift : shift);
+        plan.dest[rows + k - k0] = static_cast<std::int32_t>(old.dest[k] + (old.dest[k] >= old.scratch_start ? scratch_shift : shift));
       const auto term_shift = static_cast<std::int32_t>(first_term) - static_cast<std::int32_t>(t0);
       plan.local_begin.resize(rows + 1 + (k1 - k0));
       for (std::size_t k = k0 + 1; k <= k1; ++k) plan.local_begin[rows + k - k0] = old.local_begin[k] + term_shift;
       plan.remote_begin.resize(plan.remote_begin.size() + (k1 - k0), static_cast<std::int32_t>(remote_pending.size()));
       plan.local_src.resize(first_term + (t1 - t0));
       plan.local_src_slot.resize(first_term + (t1 - t0));
-      plan.local_w.insert(plan.local_w.end(), old.local_w.begin() + static_cast<std::ptrdiff_t>(t0),
-                          old.local_w.begin() + static_cast<std::ptrdiff_t>(t1));
+      plan.local_weight.insert(plan.local_weight.end(), old.local_weight.begin() + static_cast<std::ptrdiff_t>(t0),
+                               old.local_weight.begin() + static_cast<std::ptrdiff_t>(t1));
       for (std::size_t t = t0; t < t1; ++t) {
         const std::int32_t from = old.local_src_slot[t];
         if (from == GhostPlan::kScratchSlot) {
-          plan.local_src[first_term + t - t0] = old.local_src[t] + scratch_shift;
+          plan.local_src[first_term + t - t0] = static_cast<std::int32_t>(old.local_src[t] + scratch_shift);
           plan.local_src_slot[first_term + t - t0] = from;
           continue;
         }
         const std::int64_t to = slot_now[static_cast<std::size_t>(from)];
-        plan.local_src[first_term + t - t0] = old.local_src[t] + (to - from) * volume;
+        plan.local_src[first_term + t - t0] = static_cast<std::int32_t>(old.local_src[t] + (to - from) * volume);
         plan.local_src_slot[first_term + t - t0] = static_cast<std::int32_t>(to);
       }
       std::copy_n(old.kind.begin() + static_cast<std::ptrdiff_t>(*o * block_volume_), block_volume_,
@@ -812,7 +886,7 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
       }
       if (interior) continue;
       const std::size_t at = s * block_volume_ + p;
-      plan.dest[row] = static_cast<std::int64_t>(at);
+      plan.dest[row] = static_cast<std::int32_t>(at);
       if (outside) {
         // Never read: derivatives use one-sided rows and prediction one-sided stencils there.
         plan.kind[at] = static_cast<std::uint8_t>(GhostKind::kOutsideDomain);
@@ -830,9 +904,9 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
         for (std::size_t a = 0, rest = region; a < static_cast<std::size_t>(Dim); ++a, rest /= 3)
           q[a] -= (static_cast<int>(rest % 3) - 1) * bs;
         plan.kind[at] = static_cast<std::uint8_t>(GhostKind::kSameLevel);
-        plan.local_src.push_back(from * static_cast<std::int64_t>(block_volume_) + shape.index(q));
+        plan.local_src.push_back(static_cast<std::int32_t>(from * static_cast<std::int64_t>(block_volume_) + shape.index(q)));
         plan.local_src_slot.push_back(static_cast<std::int32_t>(from));
-        plan.local_w.push_back(1.0);
+        plan.local_weight.push_back(WeightTable::kOne);
         end_row();
         continue;
       }
@@ -849,9 +923,9 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
         // give, its point injected (weight 1), without the term list.
         auto q = resolver.injected(key.level, idx);
         for (int& qa : q) qa += g;
-        plan.local_src.push_back(static_cast<std::int64_t>((source - first_leaf_) * block_volume_) + shape.index(q));
+        plan.local_src.push_back(static_cast<std::int32_t>((source - first_leaf_) * block_volume_ + static_cast<std::size_t>(shape.index(q))));
         plan.local_src_slot.push_back(static_cast<std::int32_t>(source - first_leaf_));
-        plan.local_w.push_back(1.0);
+        plan.local_weight.push_back(WeightTable::kOne);
         end_row();
         continue;
       }
@@ -874,7 +948,7 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
     plan.remote_lead.resize(row + scratch_rows, 0);
     plan.row_stage.resize(row + scratch_rows, 0);
     for (std::size_t q = 0; q < scratch_rows; ++q) {
-      plan.dest[row] = plan.scratch_start + scratch_points + static_cast<std::int64_t>(q);
+      plan.dest[row] = static_cast<std::int32_t>(plan.scratch_start + scratch_points + static_cast<std::int64_t>(q));
       terms.clear();
       resolver.predict(key.level, scratch[q].second, 1.0, terms);
       add_terms(row);
@@ -896,6 +970,7 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
     plan.block_dependency_begin.push_back(static_cast<std::int32_t>(plan.block_dependencies.size()));
   }
 
+  refuse_beyond_32_bits(plan.scratch_start + scratch_points);
   // Exchange the request lists once; the receivers translate them to local offsets.
   const auto P = static_cast<std::size_t>(ranks_);
   std::vector<int> recv_counts(P), send_counts(P), recv_first(P + 1, 0), send_first(P + 1, 0);
@@ -1009,7 +1084,7 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan, const GhostPlan* previ
       return;
     }
     const auto t = static_cast<std::size_t>(plan.local_begin[k]);
-    const std::int64_t dest = plan.dest[k], src = plan.local_src[t];
+    const std::int32_t dest = plan.dest[k], src = plan.local_src[t];
     into([&](std::size_t l) {
       auto& runs = plan.copy_runs[l];
       auto* last = runs.size() > run_floor[l] ? &runs.back() : nullptr;  // not another block's
@@ -1040,8 +1115,8 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan, const GhostPlan* previ
       for (auto r = begin[0][o]; r < begin[0][o + 1]; ++r) {
         auto run = old.copy_runs[list][static_cast<std::size_t>(r)];
         const std::int64_t to = slot_now[static_cast<std::size_t>(run.src_slot)];
-        run.dest += dest_shift;
-        run.src += (to - run.src_slot) * volume;
+        run.dest = static_cast<std::int32_t>(run.dest + dest_shift);
+        run.src = static_cast<std::int32_t>(run.src + (to - run.src_slot) * volume);
         run.src_slot = static_cast<std::int32_t>(to);
         plan.copy_runs[list].push_back(run);
       }
@@ -1085,6 +1160,22 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan, const GhostPlan* previ
     }
   }
   mark_block_begin();
+  for (std::size_t list = 0; list < plan.packed.size(); ++list)
+    for (std::size_t kind = 0; kind < 3; ++kind) {
+      auto& to = plan.packed[list][kind];
+      to.dest.clear();
+      to.src.clear();
+      to.weight.clear();
+      to.begin.assign(1, 0);
+      for (const std::int32_t row : kind == 0 ? plan.sum_rows[list] : plan.derived_rows[list][kind - 1]) {
+        const auto k = static_cast<std::size_t>(row);
+        const auto t0 = static_cast<std::ptrdiff_t>(plan.local_begin[k]), t1 = static_cast<std::ptrdiff_t>(plan.local_begin[k + 1]);
+        to.dest.push_back(plan.dest[k]);
+        to.src.insert(to.src.end(), plan.local_src.begin() + t0, plan.local_src.begin() + t1);
+        to.weight.insert(to.weight.end(), plan.local_weight.begin() + t0, plan.local_weight.begin() + t1);
+        to.begin.push_back(static_cast<std::int32_t>(to.src.size()));
+      }
+    }
   order_fill_while_writing(plan);
 }
 
@@ -1131,23 +1222,27 @@ void AdaptiveGrid<Dim>::set_stencil_reach(int along_axis, int across_two_axes) {
 
 namespace {
 
-/// Rows of local terms (`rows`) of a ghost plan for kFields consecutive field arrays at once.
+/// Packed rows first .. last of local terms (GhostPlan::PackedRows) for kFields consecutive field
+/// arrays at once.
 /// Each field's sum is accumulated from 0 in term order however many fields go together, so the
 /// values are bitwise the same; with the fields side by side a row's indices and weights are
 /// read once, and its kFields sums are independent chains (a lone sum waits on each add).
 template <int kFields, typename Plan>
-void sum_local_rows(const Plan& plan, std::span<const std::int32_t> rows, std::vector<double>* fields) {
+void sum_local_rows(const Plan& plan, const typename Plan::PackedRows& rows, std::size_t first, std::size_t last,
+                    std::vector<double>* fields) {
   std::array<double*, kFields> u{};
   for (std::size_t f = 0; f < kFields; ++f) u[f] = fields[f].data();
-  const auto* begin = plan.local_begin.data();
-  const auto* src = plan.local_src.data();
-  const auto* weight = plan.local_w.data();
-  for (const std::int32_t row : rows) {
-    const auto k = static_cast<std::size_t>(row);
+  const auto* begin = rows.begin.data();
+  const auto* src = rows.src.data();
+  const auto* weight_of = rows.weight.data();
+  const double* weights = plan.weights.data();
+  for (std::size_t k = first; k < last; ++k) {
     std::array<double, kFields> v{};
-    for (auto t = static_cast<std::size_t>(begin[k]); t < static_cast<std::size_t>(begin[k + 1]); ++t)
-      for (std::size_t f = 0; f < kFields; ++f) v[f] += weight[t] * u[f][src[t]];
-    for (std::size_t f = 0; f < kFields; ++f) u[f][plan.dest[k]] = v[f];
+    for (auto t = static_cast<std::size_t>(begin[k]); t < static_cast<std::size_t>(begin[k + 1]); ++t) {
+      const double weight = weights[weight_of[t]];
+      for (std::size_t f = 0; f < kFields; ++f) v[f] += weight * u[f][src[t]];
+    }
+    for (std::size_t f = 0; f < kFields; ++f) u[f][rows.dest[k]] = v[f];
   }
 }
 
@@ -1164,13 +1259,14 @@ void copy_runs(std::span<const Run> runs, std::vector<double>* fields) {
     }
 }
 
-/// Copy runs, then local sums, for kFields consecutive field arrays: a whole list's, or one
-/// block's entries of it.
+/// Copy runs, then local sums (packed rows first .. last), for kFields consecutive field
+/// arrays: a whole list's, or one block's entries of it.
 template <int kFields, typename Plan>
 void fill_local_terms(const Plan& plan, std::span<const typename Plan::CopyRun> runs,
-                      std::span<const std::int32_t> sums, std::vector<double>* fields) {
+                      const typename Plan::PackedRows& sums, std::size_t first, std::size_t last,
+                      std::vector<double>* fields) {
   copy_runs<kFields>(runs, fields);
-  sum_local_rows<kFields>(plan, sums, fields);
+  sum_local_rows<kFields>(plan, sums, first, last, fields);
 }
 
 /// The rows with remote terms, all their terms in their order (the leading remote ones, the
@@ -1190,7 +1286,7 @@ void sum_remote_rows(const Plan& plan, std::span<const std::int32_t> rows, std::
       double v = 0;
       add_remote(v, plan.remote_begin[k], lead);
       for (auto t = static_cast<std::size_t>(plan.local_begin[k]); t < static_cast<std::size_t>(plan.local_begin[k + 1]); ++t)
-        v += plan.local_w[t] * u[plan.local_src[t]];
+        v += plan.weights[plan.local_weight[t]] * u[plan.local_src[t]];
       add_remote(v, lead, plan.remote_begin[k + 1]);
       u[plan.dest[k]] = v;
     }
@@ -1202,7 +1298,8 @@ void sum_remote_rows(const Plan& plan, std::span<const std::int32_t> rows, std::
 template <int Dim>
 void AdaptiveGrid<Dim>::fill_local_ghosts(const GhostPlan& plan, std::size_t list) {
   for_field_groups(data_, [&](auto group, std::vector<double>* fields) {
-    fill_local_terms<decltype(group)::value>(plan, std::span(plan.copy_runs[list]), std::span(plan.sum_rows[list]), fields);
+    fill_local_terms<decltype(group)::value>(plan, std::span(plan.copy_runs[list]), plan.packed[list][0], 0,
+                                             plan.sum_rows[list].size(), fields);
   });
 }
 
@@ -1210,10 +1307,10 @@ template <int Dim>
 void AdaptiveGrid<Dim>::fill_separable_ghosts(const GhostPlan& plan, std::initializer_list<std::size_t> lists) {
   for (std::size_t stage = 0; stage < 2; ++stage)
     for (const std::size_t list : lists) {
-      const auto& rows = plan.derived_rows[list][stage];
-      if (rows.empty()) continue;
+      const std::size_t rows = plan.derived_rows[list][stage].size();
+      if (rows == 0) continue;
       for_field_groups(data_, [&](auto group, std::vector<double>* fields) {
-        sum_local_rows<decltype(group)::value>(plan, rows, fields);
+        sum_local_rows<decltype(group)::value>(plan, plan.packed[list][1 + stage], 0, rows, fields);
       });
     }
 }
@@ -1276,16 +1373,23 @@ double AdaptiveGrid<Dim>::write_and_fill_stencil_ghosts(const std::function<void
   };
   // A block's rows in the order fill_ghost_lists takes them: its local rows, then (after the
   // messages) its remote rows, then those summed from its own ghosts, stage by stage.
+  // Block s's range of list 0's packed rows of a kind (sums, derived stages 1, 2).
+  auto packed_range = [&](std::size_t kind, std::size_t s) {
+    const auto& begin = plan.block_group_begin[0][kind == 0 ? 1 : 2 + kind];
+    return std::pair(static_cast<std::size_t>(begin[s]), static_cast<std::size_t>(begin[s + 1]));
+  };
   auto fill_block = [&](std::size_t s, bool remote) {
+    const auto [first_sum, last_sum] = packed_range(0, s);
     for_field_groups(data_, [&](auto group, std::vector<double>* fields) {
-      fill_local_terms<decltype(group)::value>(plan, entries(plan.copy_runs[0], 0, s), entries(plan.sum_rows[0], 1, s), fields);
+      fill_local_terms<decltype(group)::value>(plan, entries(plan.copy_runs[0], 0, s), plan.packed[0][0], first_sum,
+                                               last_sum, fields);
     });
     if (remote) sum_remote_rows(plan, entries(plan.remote_rows[0], 2, s), data_);
     for (std::size_t stage = 0; stage < 2; ++stage) {
-      const auto rows = entries(plan.derived_rows[0][stage], 3 + stage, s);
-      if (rows.empty()) continue;
+      const auto [first, last] = packed_range(1 + stage, s);
+      if (first == last) continue;
       for_field_groups(data_, [&](auto group, std::vector<double>* fields) {
-        sum_local_rows<decltype(group)::value>(plan, rows, fields);
+        sum_local_rows<decltype(group)::value>(plan, plan.packed[0][1 + stage], first, last, fields);
       });
     }
   };
@@ -2029,9 +2133,14 @@ std::size_t AdaptiveGrid<Dim>::memory_bytes() const {
   std::size_t bytes = 0;
   for (const auto& f : data_) bytes += f.size() * sizeof(double);
   for (const GhostPlan* p : {plan_.get(), spare_plan_.get()})
-    if (p)
-      bytes += p->dest.capacity() * 8 + p->local_src.capacity() * 16 + p->remote_src.capacity() * 12 +
+    if (p) {
+      bytes += p->dest.capacity() * 4 + p->local_src.capacity() * 4 + p->local_weight.capacity() * 2 +
+               p->local_src_slot.capacity() * 4 + p->remote_src.capacity() * 12 +
                p->kind.capacity() + (p->send_buffer.capacity() + p->recv_buffer.capacity()) * 8;
+      for (const auto& list : p->packed)
+        for (const auto& rows : list)
+          bytes += (rows.dest.capacity() + rows.begin.capacity() + rows.src.capacity()) * 4 + rows.weight.capacity() * 2;
+    }
   return bytes;
 }
 
