@@ -1,6 +1,7 @@
 #include "wavelet/DetailKernels.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstddef>
 #include <cstring>
@@ -32,6 +33,7 @@ decltype(auto) with_block_size(int bs, Kernel&& kernel) {
 /// kernels (flatten), so the ABI GCC warns about for the baseline clone is never crossed.
 #pragma GCC diagnostic ignored "-Wpsabi"
 typedef double Lanes __attribute__((vector_size(4 * sizeof(double))));
+typedef long long LaneBits __attribute__((vector_size(4 * sizeof(long long))));  // Lanes' bits
 
 /// V (a double or Lanes) from / to possibly unaligned memory.
 template <class V>
@@ -43,6 +45,20 @@ V load(const double* p) {
 template <class V>
 void store(double* p, const V& v) {
   std::memcpy(p, &v, sizeof v);
+}
+
+/// |v| (v a double or Lanes) by clearing the sign bits: one AND where `v < 0 ? -v : v` took a
+/// compare, an XOR and a blend. The maxima below only ask `>` of the magnitudes, to which the
+/// sign of a zero or of a NaN makes no difference, so they come out bitwise the same.
+template <class V>
+V magnitude_of(const V& v) {
+  if constexpr (std::is_same_v<V, double>) {
+    return std::abs(v);
+  } else {
+    static_assert(sizeof(V) == sizeof(LaneBits));
+    constexpr long long kAllButSign = 0x7fffffffffffffffLL;
+    return std::bit_cast<V>(std::bit_cast<LaneBits>(v) & LaneBits{kAllButSign, kAllButSign, kAllButSign, kAllButSign});
+  }
 }
 
 template <int Dim, int kOrder, int kBlockSize>
@@ -77,10 +93,10 @@ DetailMaxima maxima(const double* u, const DetailRows<Dim>& rows, double* along_
                            bool near_line) {
     const V zero{};
     const V value = load<V>(u_line + m);
-    const V size = value < 0 ? -value : value;
+    const V size = magnitude_of(value);
     top_u = size > top_u ? size : top_u;
     V d = value - predicted;
-    d = d < 0 ? -d : d;
+    d = magnitude_of(d);
     top = d > top ? d : top;
     const V dn = near_line ? (load<V>(row_mask.data() + m) != 0 ? d : zero) : zero;
     top_near = dn > top_near ? dn : top_near;
@@ -243,7 +259,7 @@ double largest_magnitude(const double* u, int dim, int bs, int g) {
       for (; i + 4 <= ubs; i += 4) {
         Lanes v;
         std::memcpy(&v, row + i, sizeof v);
-        v = v < 0 ? -v : v;
+        v = magnitude_of(v);
         top = v > top ? v : top;  // NaN lanes keep the old value
       }
       for (; i < ubs; ++i) {
@@ -298,7 +314,7 @@ BlockExtent extent(const double* u, int dim, int bs, int g) {
       for (; i + 4 <= ubs; i += 4) {
         Lanes v;
         std::memcpy(&v, inside + i, sizeof v);
-        v = v < 0 ? -v : v;
+        v = magnitude_of(v);
         top = v > top ? v : top;
       }
       for (; i < ubs; ++i) {
