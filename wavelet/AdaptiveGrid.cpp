@@ -1117,6 +1117,7 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan, const GhostPlan* previ
     }
   }
   mark_block_begin();
+  // The weighted rows copied out with their terms, in their lists' order (GhostPlan::PackedRows).
   for (std::size_t list = 0; list < plan.packed.size(); ++list)
     for (std::size_t kind = 0; kind < 3; ++kind) {
       auto& to = plan.packed[list][kind];
@@ -1328,13 +1329,14 @@ double AdaptiveGrid<Dim>::write_and_fill_stencil_ghosts(const std::function<void
     const auto& begin = plan.block_group_begin[0][kind];
     return std::span(list).subspan(static_cast<std::size_t>(begin[s]), static_cast<std::size_t>(begin[s + 1] - begin[s]));
   };
-  // A block's rows in the order fill_ghost_lists takes them: its local rows, then (after the
-  // messages) its remote rows, then those summed from its own ghosts, stage by stage.
-  // Block s's range of list 0's packed rows of a kind (sums, derived stages 1, 2).
+  // Block s's range of list 0's packed rows of a kind (sums, derived stages 1, 2): its entries
+  // of sum_rows and derived_rows, whose order the packed rows keep.
   auto packed_range = [&](std::size_t kind, std::size_t s) {
     const auto& begin = plan.block_group_begin[0][kind == 0 ? 1 : 2 + kind];
     return std::pair(static_cast<std::size_t>(begin[s]), static_cast<std::size_t>(begin[s + 1]));
   };
+  // A block's rows in the order fill_ghost_lists takes them: its local rows, then (after the
+  // messages) its remote rows, then those summed from its own ghosts, stage by stage.
   auto fill_block = [&](std::size_t s, bool remote) {
     const auto [first_sum, last_sum] = packed_range(0, s);
     for_field_groups(data_, [&](auto group, std::vector<double>* fields) {
