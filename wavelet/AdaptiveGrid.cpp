@@ -142,8 +142,12 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   struct PackedRows {
     std::vector<std::int32_t> dest, begin, src;
     std::vector<std::uint16_t> weight;
+    std::size_t rows() const { return dest.size(); }
   };
   std::array<std::array<PackedRows, 3>, 3> packed;
+  // Per kind of packed rows, the index of its row lists in block_group_begin (below): a block's
+  // range of packed rows is its range of those row numbers, whose order they keep.
+  static constexpr std::array<std::size_t, 3> kPackedGroup{1, 3, 4};
   // Per list 0 and 1 and per local block (and one past the last): where its entries begin in
   // copy_runs, sum_rows, remote_rows, derived_rows[.][0] and [.][1]. Each block's entries are
   // contiguous (no run spans two blocks), so a block whose rows are reused after an adaptation
@@ -1257,7 +1261,7 @@ template <int Dim>
 void AdaptiveGrid<Dim>::fill_local_ghosts(const GhostPlan& plan, std::size_t list) {
   for_field_groups(data_, [&](auto group, std::vector<double>* fields) {
     fill_local_terms<decltype(group)::value>(plan, std::span(plan.copy_runs[list]), plan.packed[list][0], 0,
-                                             plan.sum_rows[list].size(), fields);
+                                             plan.packed[list][0].rows(), fields);
   });
 }
 
@@ -1265,10 +1269,10 @@ template <int Dim>
 void AdaptiveGrid<Dim>::fill_separable_ghosts(const GhostPlan& plan, std::initializer_list<std::size_t> lists) {
   for (std::size_t stage = 0; stage < 2; ++stage)
     for (const std::size_t list : lists) {
-      const std::size_t rows = plan.derived_rows[list][stage].size();
-      if (rows == 0) continue;
+      const auto& rows = plan.packed[list][1 + stage];
+      if (rows.rows() == 0) continue;
       for_field_groups(data_, [&](auto group, std::vector<double>* fields) {
-        sum_local_rows<decltype(group)::value>(plan, plan.packed[list][1 + stage], 0, rows, fields);
+        sum_local_rows<decltype(group)::value>(plan, rows, 0, rows.rows(), fields);
       });
     }
 }
@@ -1329,10 +1333,9 @@ double AdaptiveGrid<Dim>::write_and_fill_stencil_ghosts(const std::function<void
     const auto& begin = plan.block_group_begin[0][kind];
     return std::span(list).subspan(static_cast<std::size_t>(begin[s]), static_cast<std::size_t>(begin[s + 1] - begin[s]));
   };
-  // Block s's range of list 0's packed rows of a kind (sums, derived stages 1, 2): its entries
-  // of sum_rows and derived_rows, whose order the packed rows keep.
+  // Block s's range of list 0's packed rows of a kind (sums, derived stages 1, 2).
   auto packed_range = [&](std::size_t kind, std::size_t s) {
-    const auto& begin = plan.block_group_begin[0][kind == 0 ? 1 : 2 + kind];
+    const auto& begin = plan.block_group_begin[0][GhostPlan::kPackedGroup[kind]];
     return std::pair(static_cast<std::size_t>(begin[s]), static_cast<std::size_t>(begin[s + 1]));
   };
   // A block's rows in the order fill_ghost_lists takes them: its local rows, then (after the
