@@ -822,22 +822,15 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
       same_level[r] = static_cast<std::int64_t>(*leaf - first_leaf_);
       found.push_back(*leaf);  // a leaf its rows read
     }
-    // The point's array coordinates, counted along (two 64-bit divisions per point in
-    // ArrayShape::coords were a fifth of a rebuild).
-    Index i{};
-    for (std::size_t p = 0; p < block_volume_; ++p) {
-      for (std::size_t a = 0; p > 0 && a < static_cast<std::size_t>(Dim); ++a) {
-        if (++i[a] < shape.extent[a]) break;
-        i[a] = 0;
-      }
-      bool interior = true, outside = false;
+    // A ghost point that is not a same-level copy (below): outside the domain, injected from a
+    // same-level or finer leaf of this rank found by lookup, or a weighted row.
+    auto resolve_point = [&](std::size_t p, const Index& i) {
+      bool outside = false;
       std::array<GlobalIndex64, Dim> idx{};
       for (int a = 0; a < Dim; ++a) {
         const auto au = static_cast<std::size_t>(a);
-        const int local = i[au] - g;
-        interior = interior && local >= 0 && local < bs;
         const GlobalIndex64 n = points_along[au];
-        GlobalIndex64 v = static_cast<GlobalIndex64>(c[au]) * bs + local;
+        GlobalIndex64 v = static_cast<GlobalIndex64>(c[au]) * bs + (i[au] - g);
         if (v < 0 || v >= n) {
           // A ghost reaches less than a block beyond the domain: one period at most.
           if (config_.periodic[au]) v += v < 0 ? n : -n;
@@ -845,31 +838,13 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
         }
         idx[au] = v;
       }
-      if (interior) continue;
       const std::size_t at = s * block_volume_ + p;
       plan.dest[row] = static_cast<std::int32_t>(at);
       if (outside) {
         // Never read: derivatives use one-sided rows and prediction one-sided stencils there.
         plan.kind[at] = static_cast<std::uint8_t>(GhostKind::kOutsideDomain);
         end_row();
-        continue;
-      }
-      std::size_t region = 0;
-      for (int a = Dim - 1; a >= 0; --a) {
-        const int x = i[static_cast<std::size_t>(a)];
-        region = 3 * region + (x < g ? 0 : x < g + bs ? 1 : 2);
-      }
-      if (const std::int64_t from = same_level[region]; from >= 0) {
-        // The neighbour's point: one block's width back along each axis it lies beyond.
-        Index q = i;
-        for (std::size_t a = 0, rest = region; a < static_cast<std::size_t>(Dim); ++a, rest /= 3)
-          q[a] -= (static_cast<int>(rest % 3) - 1) * bs;
-        plan.kind[at] = static_cast<std::uint8_t>(GhostKind::kSameLevel);
-        plan.local_src.push_back(static_cast<std::int32_t>(from * static_cast<std::int64_t>(block_volume_) + shape.index(q)));
-        plan.local_src_slot.push_back(static_cast<std::int32_t>(from));
-        plan.local_weight.push_back(WeightTable::kOne);
-        end_row();
-        continue;
+        return;
       }
       // The lookup leaves the containing leaf in last() (and remembered, so
       // resolve below finds it again at once).
@@ -888,16 +863,73 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
         plan.local_src_slot.push_back(static_cast<std::int32_t>(source - first_leaf_));
         plan.local_weight.push_back(WeightTable::kOne);
         end_row();
-        continue;
+        return;
       }
       if (source_level < key.level && add_separable_row(s, key.level, i, idx, points_along, row)) {
         end_row();
-        continue;
+        return;
       }
       terms.clear();
       resolver.resolve(key.level, idx, 1.0, terms);
       add_terms(row);
       end_row();
+    };
+    // The ghosts in array order, line by line along axis 0, each line in its three segments
+    // (below, inside and above the block along axis 0). A segment lies in one region: where
+    // that region is a same-level leaf of this rank (most ghosts), its rows are copies of
+    // consecutive points of that leaf, written as one run without a lookup or a coordinate per
+    // point (the per-point path was most of a rebuild). Such a leaf exists only where the region
+    // is inside the domain or periodic, and ghosts <= block size puts the whole region in it.
+    const int line_length = shape.extent[0];
+    const std::array<int, 4> segment_edge{0, g, g + bs, bs + 2 * g};
+    Index i{};  // the line's coordinates along axes 1 .. Dim - 1 (i[0] set per point)
+    for (std::size_t line = 0; line < block_volume_; line += static_cast<std::size_t>(line_length)) {
+      std::size_t region_across = 0;  // the region's digits along axes 1 .. Dim - 1
+      bool inside_across = true;
+      for (int a = Dim - 1; a >= 1; --a) {
+        const int x = i[static_cast<std::size_t>(a)];
+        const int side = x < g ? 0 : x < g + bs ? 1 : 2;
+        region_across = 3 * region_across + static_cast<std::size_t>(side);
+        inside_across = inside_across && side == 1;
+      }
+      for (int side = 0; side < 3; ++side) {
+        if (inside_across && side == 1) continue;  // the block's interior
+        const int x0 = segment_edge[static_cast<std::size_t>(side)], x1 = segment_edge[static_cast<std::size_t>(side) + 1];
+        const std::size_t region = 3 * region_across + static_cast<std::size_t>(side);
+        if (const std::int64_t from = same_level[region]; from >= 0) {
+          // The neighbour's points: one block's width back along each axis the region lies beyond.
+          Index q = i;
+          q[0] = x0;
+          for (std::size_t a = 0, rest = region; a < static_cast<std::size_t>(Dim); ++a, rest /= 3)
+            q[a] -= (static_cast<int>(rest % 3) - 1) * bs;
+          const auto first_src = static_cast<std::int32_t>(from * static_cast<std::int64_t>(block_volume_) + shape.index(q));
+          const auto first_dest = static_cast<std::int32_t>(s * block_volume_ + line) + x0;
+          const auto n = static_cast<std::size_t>(x1 - x0);
+          const std::size_t t0 = plan.local_src.size();
+          plan.local_src.resize(t0 + n);
+          plan.local_src_slot.resize(t0 + n, static_cast<std::int32_t>(from));
+          plan.local_weight.resize(t0 + n, WeightTable::kOne);
+          const auto pending = static_cast<std::int32_t>(remote_pending.size());
+          for (std::size_t k = 0; k < n; ++k) {  // kind: kSameLevel, as plan.kind starts
+            const auto d = static_cast<std::int32_t>(k);
+            plan.dest[row + k] = first_dest + d;
+            plan.local_src[t0 + k] = first_src + d;
+            plan.local_begin[row + k + 1] = static_cast<std::int32_t>(t0 + k + 1);
+            plan.remote_begin[row + k + 1] = pending;
+          }
+          row += n;
+          continue;
+        }
+        for (int x = x0; x < x1; ++x) {
+          i[0] = x;
+          resolve_point(line + static_cast<std::size_t>(x), i);
+        }
+      }
+      i[0] = 0;
+      for (std::size_t a = 1; a < static_cast<std::size_t>(Dim); ++a) {
+        if (++i[a] < shape.extent[a]) break;
+        i[a] = 0;
+      }
     }
     if (row != first_row + ghost_rows) throw std::logic_error("AdaptiveGrid: ghost rows miscounted");
     // The scratch points' rows: the prediction along the remaining odd axes, whichever leaf
