@@ -181,6 +181,19 @@ void BM_AdaptCycle(benchmark::State& state) {
   state.counters["blocks_per_s"] = benchmark::Counter(2 * blocks, benchmark::Counter::kIsIterationInvariantRate);
 }
 
+// A ghost plan built afresh for every block (what a changing cycle pays for the blocks around
+// a change): the disc grid's leaves rebuilt, fields zeroed, plan resolved point by point where
+// levels meet. Time per block.
+template <int Dim>
+void BM_GhostPlanBuild(benchmark::State& state) {
+  auto grid = disc_grid<Dim>(static_cast<int>(state.range(0)), static_cast<int>(state.range(1)));
+  const std::vector<gw::BlockKey<Dim>> leaves(grid.forest().leaves().begin(), grid.forest().leaves().end());
+  for (auto _ : state) grid.rebuild(leaves);
+  const double blocks = static_cast<double>(grid.global_blocks());
+  state.counters["blocks"] = blocks;
+  state.counters["blocks_per_s"] = benchmark::Counter(blocks, benchmark::Counter::kIsIterationInvariantRate);
+}
+
 // What a time-stepping solver pays per step once its grid has settled: one adapt_cycle (coarsen
 // and refine passes with their tagging, nothing to change) on the disc grid, its safety zone in.
 template <int Dim>
@@ -213,6 +226,8 @@ BENCHMARK(BM_GhostFill<2>)->ArgName("max_level")->Arg(4)->Unit(benchmark::kMilli
 BENCHMARK(BM_GhostFill<3>)->ArgName("max_level")->Arg(4)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_AdaptCycle<2>)->ArgName("max_level")->Arg(4)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_AdaptCycle<3>)->ArgName("max_level")->Arg(4)->Unit(benchmark::kMillisecond)->Iterations(2);
+BENCHMARK(BM_GhostPlanBuild<2>)->ArgNames({"max_level", "bs"})->Args({4, 8})->Args({3, 16})->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_GhostPlanBuild<3>)->ArgNames({"max_level", "bs"})->Args({3, 8})->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_SettledAdaptCycle<2>)->ArgName("max_level")->Arg(4)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_SettledAdaptCycle<3>)->ArgName("max_level")->Arg(4)->Unit(benchmark::kMillisecond)->Iterations(3);
 

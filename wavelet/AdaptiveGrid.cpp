@@ -539,6 +539,9 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
   layout_serial_ = ++serials;
   // Built into the plan the previous rebuild replaced: its lists keep their storage, so a moving
   // grid's rebuilds do not fault fresh pages in (the kernel zeroing them was 10% of a rebuild).
+  // Without a previous plan (a rebuild from a leaf set), the current one is replaced outright:
+  // its storage serves the same way.
+  if (!spare_plan_ && !previous) spare_plan_ = std::move(plan_);
   plan_ = spare_plan_ ? std::move(spare_plan_) : std::make_unique<GhostPlan>();
   plan_->clear();
   GhostPlan& plan = *plan_;
@@ -1053,7 +1056,16 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan, const GhostPlan* previ
     }
     group_of[p] = outside == 0 || deepest <= stencil_reach_[static_cast<std::size_t>(outside - 1)] ? 0 : 1;
   }
-  std::array<std::size_t, 3> run_floor{};  // the runs before these are other blocks'
+  // Per list, the copy run the block's rows are extending (kept here, not in the list, so that
+  // each row's test does not wait on the last row's store), appended when it ends: runs stay
+  // within a block.
+  std::array<typename GhostPlan::CopyRun, 3> open_run{};
+  std::array<bool, 3> run_open{};
+  auto close_runs = [&] {
+    for (std::size_t l = 0; l < open_run.size(); ++l)
+      if (run_open[l]) plan.copy_runs[l].push_back(open_run[l]);
+    run_open.fill(false);
+  };
   // Row k into list `list`, and (a row of a block built afresh) into kRebuiltRows too: sorted
   // once for both.
   auto add = [&](std::size_t list, std::size_t k, bool rebuilt) {
@@ -1079,10 +1091,14 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan, const GhostPlan* previ
     const auto t = static_cast<std::size_t>(plan.local_begin[k]);
     const std::int32_t dest = plan.dest[k], src = plan.local_src[t];
     into([&](std::size_t l) {
-      auto& runs = plan.copy_runs[l];
-      auto* last = runs.size() > run_floor[l] ? &runs.back() : nullptr;  // not another block's
-      if (last && dest == last->dest + last->length && src == last->src + last->length) ++last->length;
-      else runs.push_back({dest, src, 1, plan.local_src_slot[t]});
+      auto& run = open_run[l];
+      if (run_open[l] && dest == run.dest + run.length && src == run.src + run.length) {
+        ++run.length;
+        return;
+      }
+      if (run_open[l]) plan.copy_runs[l].push_back(run);
+      run = {dest, src, 1, plan.local_src_slot[t]};
+      run_open[l] = true;
     });
   };
   auto mark_block_begin = [&] {
@@ -1129,7 +1145,6 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan, const GhostPlan* previ
       take_old_entries(s, static_cast<std::size_t>(plan.reused_from[s]));
       continue;
     }
-    for (std::size_t list = 0; list < run_floor.size(); ++list) run_floor[list] = plan.copy_runs[list].size();
     const auto base = static_cast<std::int64_t>(s * block_volume_);
     const bool rebuilt = plan.block_rebuilt[s] != 0;
     const auto first_row = static_cast<std::size_t>(plan.block_row_begin[s]);
@@ -1151,6 +1166,7 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan, const GhostPlan* previ
                      : group_of[static_cast<std::size_t>(plan.dest[k] - base)],
           k, rebuilt);
     }
+    close_runs();
   }
   mark_block_begin();
   // The weighted rows copied out with their terms, in their lists' order (GhostPlan::PackedRows).
