@@ -378,6 +378,16 @@ class AdaptiveGrid {
   mutable std::vector<double> parent_array_;             // parent_significant: the assembled parent
   mutable std::vector<std::pair<int, std::ptrdiff_t>> parent_sources_;  // ... and where its points come from
   mutable std::vector<std::uint8_t> bound_rest_;  // block_significance: calls left without the range bound
+  /// adapt_pass: which leaves each pass tests (coarsen 0, refine 1), for the layout, forced
+  /// leaves and adjacency they were found for (layout serials are never reused).
+  struct NeededLeaves {
+    std::uint64_t layout = 0;
+    bool adjacent = false;
+    std::vector<char> force;
+    std::array<std::vector<char>, 2> needed;
+    std::array<bool, 2> known{};
+  };
+  NeededLeaves needed_cache_;
   /// Whether block_significance's next call on a local block tries the range bound (field_scales
   /// then gives the block's range; not while the bound rests).
   bool range_bound_tried(std::size_t slot) const { return bound_rest_.size() != local_blocks() || bound_rest_[slot] == 0; }
