@@ -378,6 +378,7 @@ class AdaptiveGrid {
   mutable std::vector<double> parent_array_;             // parent_significant: the assembled parent
   mutable std::vector<std::pair<int, std::ptrdiff_t>> parent_sources_;  // ... and where its points come from
   mutable std::vector<std::uint8_t> bound_rest_;  // block_significance: calls left without the range bound
+  mutable std::vector<std::uint8_t> bound_failures_;  // ... and the failures of its tries in a row
   /// adapt_pass: which leaves each pass tests (coarsen 0, refine 1), for the layout, forced
   /// leaves and adjacency they were found for (layout serials are never reused).
   struct NeededLeaves {
