@@ -15,3 +15,18 @@
 #define GRAINWAVE_CLONES_AVX2
 #define GRAINWAVE_CLONES_AVX512
 #endif
+
+namespace grainwave {
+
+/// Whether the CPU running this process has AVX-512F (the widest clone's instruction set), for
+/// kernels that pick a lane width at run time: a wider vector type is one register only there.
+inline bool cpu_has_avx512f() {
+#if defined(__x86_64__) && defined(__GNUC__)
+  static const bool has = __builtin_cpu_supports("avx512f");
+  return has;
+#else
+  return false;
+#endif
+}
+
+}  // namespace grainwave

@@ -278,7 +278,6 @@ AdaptiveGrid<Dim>& AdaptiveGrid<Dim>::operator=(const AdaptiveGrid& o) {
   detail_stencils_.clear();
   slot_detail_stencils_.clear();
   bound_rest_.clear();
-  bound_failures_.clear();
   first_field_.clear();
   fields_computed_.clear();
   parent_sources_.clear();
@@ -295,7 +294,6 @@ void AdaptiveGrid<Dim>::refresh_partition() {
   const auto leaves = forest_.leaves();
   slot_detail_stencils_.clear();  // the slots hold other blocks now
   bound_rest_.clear();
-  bound_failures_.clear();
   first_field_.clear();
   fields_computed_.clear();
   local_keys_.assign(leaves.begin() + static_cast<std::ptrdiff_t>(first_leaf_),
@@ -1599,12 +1597,9 @@ std::pair<bool, bool> AdaptiveGrid<Dim>::block_significance(std::size_t slot, co
   // to 128 calls: on a smooth flow it fails on nearly every block every time (the vortex: 30%
   // of its coefficient computations followed a failed try, each after its own pass for the
   // range), while a block it decides for is tried again after 8.
-  if (bound_rest_.size() != local_blocks()) {
-    bound_rest_.assign(local_blocks(), 0);
-    bound_failures_.assign(local_blocks(), 0);
-  }
+  if (bound_rest_.size() != local_blocks()) bound_rest_.assign(local_blocks(), {});
   const bool try_bound = range_bound_tried(slot);
-  if (!try_bound) --bound_rest_[slot];
+  if (!try_bound) --bound_rest_[slot].rest;
   // The fields are tried from the one that settled the block last time: the answer is an OR
   // over the fields, so the order changes nothing but how many are computed before it is known.
   if (first_field_.size() != local_blocks()) first_field_.assign(local_blocks(), 0);
@@ -1637,9 +1632,9 @@ std::pair<bool, bool> AdaptiveGrid<Dim>::block_significance(std::size_t slot, co
     if (any && near) first_field_[slot] = f;
   }
   if (try_bound) {
-    auto& failures = bound_failures_[slot];
+    auto& [rest, failures] = bound_rest_[slot];
     failures = bound_decided ? 0 : static_cast<std::uint8_t>(std::min(failures + 1, 5));
-    bound_rest_[slot] = failures == 0 ? 0 : static_cast<std::uint8_t>(8 << (failures - 1));
+    rest = failures == 0 ? 0 : static_cast<std::uint8_t>(8 << (failures - 1));
   }
   return {any, near};
 }

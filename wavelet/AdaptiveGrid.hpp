@@ -377,8 +377,12 @@ class AdaptiveGrid {
   mutable std::array<std::vector<double>, Dim> stage_;  // partial predictions (predict_array, detail_maxima)
   mutable std::vector<double> parent_array_;             // parent_significant: the assembled parent
   mutable std::vector<std::pair<int, std::ptrdiff_t>> parent_sources_;  // ... and where its points come from
-  mutable std::vector<std::uint8_t> bound_rest_;  // block_significance: calls left without the range bound
-  mutable std::vector<std::uint8_t> bound_failures_;  // ... and the failures of its tries in a row
+  /// block_significance, per local block: calls left without the range bound, and the failures
+  /// of its tries in a row.
+  struct BoundSchedule {
+    std::uint8_t rest = 0, failures = 0;
+  };
+  mutable std::vector<BoundSchedule> bound_rest_;
   /// adapt_pass: which leaves each pass tests (coarsen 0, refine 1), for the layout, forced
   /// leaves and adjacency they were found for (layout serials are never reused).
   struct NeededLeaves {
@@ -391,7 +395,7 @@ class AdaptiveGrid {
   NeededLeaves needed_cache_;
   /// Whether block_significance's next call on a local block tries the range bound (field_scales
   /// then gives the block's range; not while the bound rests).
-  bool range_bound_tried(std::size_t slot) const { return bound_rest_.size() != local_blocks() || bound_rest_[slot] == 0; }
+  bool range_bound_tried(std::size_t slot) const { return bound_rest_.size() != local_blocks() || bound_rest_[slot].rest == 0; }
   mutable std::vector<int> first_field_;  // block_significance: the field it tries first
   /// block_significance: per local block, a bit per field whose detail maxima its last call
   /// computed (what field_scales computes ahead for the next, where the bound rests).

@@ -66,20 +66,12 @@ V magnitude_of(const V& v) {
   }
 }
 
-/// Whether the CPU holds WideLanes in one register (AVX-512F): only then does the 2D second
-/// stage take eight lanes at a time, on rows of 16 or more (BM_LargestDetails 2D, medians of
-/// five, three alternating rounds: 16^2 blocks 0.012 -> 0.010-0.011 ms, 32^2 0.010-0.012 ->
-/// 0.008-0.009 ms; 8^2 ones lost, 0.019-0.021 -> 0.021-0.022 ms: one group of lanes per row
-/// leaves its maxima one dependent chain). Elsewhere each of its operations would be two or
-/// four, with twice the registers held, so the four-lane form stays.
-bool wide_lanes_native() {
-#if defined(__x86_64__) && defined(__GNUC__)
-  static const bool native = __builtin_cpu_supports("avx512f");
-  return native;
-#else
-  return false;
-#endif
-}
+// The 2D second stage takes eight lanes at a time only where WideLanes is one register
+// (cpu_has_avx512f), on rows of 16 or more (BM_LargestDetails 2D, medians of five, three
+// alternating rounds: 16^2 blocks 0.012 -> 0.010-0.011 ms, 32^2 0.010-0.012 -> 0.008-0.009 ms;
+// 8^2 ones lost, 0.019-0.021 -> 0.021-0.022 ms: one group of lanes per row leaves its maxima one
+// dependent chain). Elsewhere each of its operations would be two or four, with twice the
+// registers held, so the four-lane form stays.
 
 template <int Dim, int kOrder, int kBlockSize>
 DetailMaxima maxima(const double* u, const DetailRows<Dim>& rows, double* along_x, double* last) {
@@ -222,7 +214,7 @@ DetailMaxima maxima(const double* u, const DetailRows<Dim>& rows, double* along_
           }
       }
     };
-    if (Dim == 2 && ubs % 8 == 0 && ubs >= 16 && wide_lanes_native()) stages.template operator()<WideLanes>();
+    if (Dim == 2 && ubs % 8 == 0 && ubs >= 16 && cpu_has_avx512f()) stages.template operator()<WideLanes>();
     else if (ubs % 4 == 0) stages.template operator()<Lanes>();
     else stages.template operator()<double>();
   }

@@ -16,6 +16,7 @@
 // the three batch_lane_forces_* entry points. GCC's -Wpsabi note (a 32- or 64-byte vector
 // passed by value would change the calling convention without AVX) is therefore moot, and the
 // including file is built with -Wno-psabi.
+#include "core/KernelClones.hpp"
 #include "particles/dem/ContactHistory.hpp"
 #include "particles/dem/CoulombSpring.hpp"
 #include "particles/dem/StaticFriction.hpp"
@@ -338,7 +339,7 @@ void batch_lane_forces(int width, PairBatch& b, int count, const LaneInputs& in,
 /// Whether this machine runs the batched pass at `width` lanes (2: always; 4: AVX2; 8: AVX-512F).
 inline bool lane_width_supported(int width) {
 #if GRAINWAVE_WIDE_LANES
-  if (width == 8) return __builtin_cpu_supports("avx512f");
+  if (width == 8) return cpu_has_avx512f();
   if (width == 4) return __builtin_cpu_supports("avx2");
 #endif
   return width == 2;

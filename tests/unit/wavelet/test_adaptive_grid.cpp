@@ -607,6 +607,62 @@ TEST(AdaptiveGrid, SettledCycleChangesNothing2D) {
   settled_cycle_changes_nothing<2>(unit_box<2>(true, 1, 5), 1e-3, disc_2d);
 }
 
+// adapt_pass keeps the leaves each pass tests from one call to the next while the layout, the
+// forced leaves and the adjacency stay the same. A layout change that keeps the leaf count (a
+// family coarsened, another leaf refined) with no forced leaves must still find them again: a
+// leaf below the finest level where a finest one was before must be tested, and refined where
+// its field is significant, as on a grid built with that layout from the start.
+TEST(AdaptiveGrid, TestedLeavesFollowALayoutOfTheSameSize) {
+  const auto c = unit_box<2>(true, 1, 2);
+  gw::ThresholdConfig th;
+  th.epsilon = 1e-3;
+  th.adjacent_blocks = false;  // each leaf tested for its own tag only
+  th.groups = {0, -1};
+  gw::AdaptiveGrid<2> grid(c);
+  ASSERT_EQ(grid.global_blocks(), 16u);
+  std::vector<gw::AdaptTag> tags(16, gw::AdaptTag::kKeep);
+  tags[0] = gw::AdaptTag::kRefine;
+  grid.adapt_with_tags(tags);
+  const std::vector<gw::BlockKey<2>> before(grid.forest().leaves().begin(), grid.forest().leaves().end());
+  ASSERT_EQ(before.size(), 19u);
+  // A refine pass on zero fields: nothing is significant, nothing changes, the tested leaves are
+  // found for this layout.
+  grid.fill_ghosts();
+  EXPECT_EQ(grid.adapt(th, gw::AdaptPass::kRefine).refined, 0);
+  // The first leaf's children coarsened, the last leaf refined: 19 leaves again.
+  tags.assign(19, gw::AdaptTag::kKeep);
+  for (std::size_t l = 0; l < 19; ++l)
+    if (before[l].level == 2) tags[l] = gw::AdaptTag::kCoarsen;
+  tags[18] = gw::AdaptTag::kRefine;
+  grid.adapt_with_tags(tags);
+  const std::vector<gw::BlockKey<2>> after(grid.forest().leaves().begin(), grid.forest().leaves().end());
+  ASSERT_EQ(after.size(), 19u);
+  // A leaf of level 1 now where the layout before had one of level 2 (which the refine pass did
+  // not test): a sharp front inside it.
+  std::size_t target = 19;
+  for (std::size_t l = 0; l < 19 && target == 19; ++l)
+    if (after[l].level == 1 && before[l].level == 2) target = l;
+  ASSERT_LT(target, 19u);
+  const auto lo = grid.origin(after[target]);
+  const auto h = grid.spacing(1);
+  const double centre = lo[0] + 0.5 * c.block_size * h[0];
+  auto front = [&](const auto& x, std::span<double> v) {
+    v[0] = std::tanh((x[0] - centre) / h[0]);
+    v[1] = 0;
+  };
+  gw::AdaptiveGrid<2> fresh(c);
+  fresh.rebuild(after);
+  for (auto* g : {&grid, &fresh}) {
+    g->sample(front);
+    g->fill_ghosts();
+  }
+  const auto fresh_refined = fresh.adapt(th, gw::AdaptPass::kRefine).refined;
+  EXPECT_GT(fresh_refined, 0);
+  EXPECT_EQ(grid.adapt(th, gw::AdaptPass::kRefine).refined, fresh_refined);
+  EXPECT_TRUE(std::equal(grid.forest().leaves().begin(), grid.forest().leaves().end(), fresh.forest().leaves().begin(),
+                         fresh.forest().leaves().end()));
+}
+
 // field_scales reads the whole block array (ghosts too) only for the blocks whose range bound
 // the tagging will try next; where the bound rests (it decided nothing on that block lately) the
 // interiors alone give the scale and the range is left NaN. Where given, the range is the whole
