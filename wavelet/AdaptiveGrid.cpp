@@ -825,8 +825,9 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
       same_level[r] = static_cast<std::int64_t>(*leaf - first_leaf_);
       found.push_back(*leaf);  // a leaf its rows read
     }
-    // A ghost point that is not a same-level copy (below): outside the domain, injected from a
-    // same-level or finer leaf of this rank found by lookup, or a weighted row.
+    // A ghost point outside the regions of same-level leaves of this rank (those are copied by
+    // segment, below): outside the domain, injected from a finer leaf of this rank found by
+    // lookup, or a weighted row (coarser leaves, other ranks).
     auto resolve_point = [&](std::size_t p, const Index& i) {
       bool outside = false;
       std::array<GlobalIndex64, Dim> idx{};
@@ -858,8 +859,8 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
                                                                            : GhostKind::kFromCoarser);
       const std::size_t source = resolver.last().leaf;
       if (source_level >= key.level && source >= first_leaf_ && source < first_leaf_ + local_keys_.size()) {
-        // A same-level or finer leaf of this rank (most ghosts): the one term resolve() would
-        // give, its point injected (weight 1), without the term list.
+        // A finer leaf of this rank (same-level ones are copied by segment): the one term
+        // resolve() would give, its point injected (weight 1), without the term list.
         auto q = resolver.injected(key.level, idx);
         for (int& qa : q) qa += g;
         plan.local_src.push_back(static_cast<std::int32_t>((source - first_leaf_) * block_volume_ + static_cast<std::size_t>(shape.index(q))));
