@@ -4,6 +4,7 @@
 // reported as blocks per second (counter `blocks_per_s`; its inverse is the time per block), in
 // 2D and 3D.
 #include "wavelet/AdaptiveGrid.hpp"
+#include "wavelet/DetailKernels.hpp"
 #include "wavelet/InterpolatingWavelet.hpp"
 #include "wavelet/Stencils.hpp"
 
@@ -133,6 +134,23 @@ void BM_LargestDetails(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(grid.global_blocks() * grid.points_per_block()));
 }
 
+// The range bound's kernel: every block's range of values (ghosts included) and interior
+// magnitude in one read, what field_scales computes per field for each block whose bound is tried.
+template <int Dim>
+void BM_BlockExtent(benchmark::State& state) {
+  auto grid = disc_grid<Dim>(static_cast<int>(state.range(0)), static_cast<int>(state.range(1)));
+  const auto& config = grid.config();
+  double sum = 0;
+  for (auto _ : state)
+    for (std::size_t s = 0; s < grid.local_blocks(); ++s) {
+      const auto e = gw::block_extent(grid.block(0, s).data(), Dim, config.block_size, grid.layout().ghosts);
+      sum += e.high - e.low + e.interior_magnitude;
+    }
+  benchmark::DoNotOptimize(sum);
+  state.counters["blocks"] = static_cast<double>(grid.global_blocks());
+  state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(grid.global_blocks() * grid.points_per_block()));
+}
+
 template <int Dim>
 void BM_GhostFill(benchmark::State& state) {
   auto grid = disc_grid<Dim>(static_cast<int>(state.range(0)));
@@ -222,6 +240,8 @@ BENCHMARK(BM_BlockCoefficients<2>)->ArgName("max_level")->Arg(4)->Unit(benchmark
 BENCHMARK(BM_BlockCoefficients<3>)->ArgName("max_level")->Arg(4)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_LargestDetails<2>)->ArgNames({"max_level", "bs"})->Args({4, 8})->Args({3, 16})->Args({2, 32})->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_LargestDetails<3>)->ArgNames({"max_level", "bs"})->Args({4, 8})->Args({3, 16})->Args({2, 32})->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_BlockExtent<2>)->ArgNames({"max_level", "bs"})->Args({4, 8})->Args({3, 16})->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_BlockExtent<3>)->ArgNames({"max_level", "bs"})->Args({3, 8})->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_GhostFill<2>)->ArgName("max_level")->Arg(4)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_GhostFill<3>)->ArgName("max_level")->Arg(4)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_AdaptCycle<2>)->ArgName("max_level")->Arg(4)->Unit(benchmark::kMillisecond);

@@ -293,52 +293,66 @@ GRAINWAVE_CLONES_AVX2 double interior_largest_magnitude(const double* u, int dim
 
 namespace {
 
-/// block_extent for block size kBlockSize (0: any). Row by row: each array row's values into
-/// the range lanes (selects that keep the old value at a NaN, as value_range), an interior row's
-/// interior values also into the magnitude lanes (as largest_magnitude). Minimum, maximum and
-/// the largest magnitude are exact whatever the order, so they are those of the two passes (of
-/// +0 and -0 the range keeps whichever came first); the range starts at u[0], as value_range's
-/// does (a NaN there stays).
+/// block_extent for block size kBlockSize (0: any). The range over the whole array, which is
+/// contiguous, in four groups of lanes (four independent chains of selects: one group, row by
+/// row with scalar tails, waited on each select's latency), the last group of a length not a
+/// multiple of four overlapping the one before (a value met twice changes no extreme); the
+/// selects keep the old value at a NaN, as value_range's. Then the interior rows' values into
+/// two groups of magnitude lanes (as largest_magnitude). Minimum, maximum and the largest
+/// magnitude are exact whatever the order, so they are those of the two passes (of +0 and -0
+/// the range keeps whichever came first); the range starts at u[0], as value_range's does (a
+/// NaN there stays).
 template <int kBlockSize>
 BlockExtent extent(const double* u, int dim, int bs, int g) {
   const auto ubs = kBlockSize > 0 ? static_cast<std::size_t>(kBlockSize) : static_cast<std::size_t>(bs);
   const auto ug = static_cast<std::size_t>(g), uw = ubs + 2 * ug;
-  const std::size_t planes = dim == 3 ? uw : 1, lines = dim >= 2 ? uw : 1;
-  auto interior = [&](std::size_t r) { return r >= ug && r < ug + ubs; };
-  Lanes lo = {u[0], u[0], u[0], u[0]}, hi = lo, top = {0, 0, 0, 0};
-  double low = u[0], high = u[0], largest = 0;
-  for (std::size_t k = 0; k < planes; ++k)
+  std::size_t n = uw;
+  for (int a = 1; a < dim; ++a) n *= uw;
+  // Named groups: kept in an array, the lanes went through the stack (see Lanes).
+  const Lanes first = {u[0], u[0], u[0], u[0]};
+  Lanes lo0 = first, lo1 = first, lo2 = first, lo3 = first, hi0 = first, hi1 = first, hi2 = first, hi3 = first;
+  auto take = [](const double* at, Lanes& lo, Lanes& hi) {
+    const auto v = load<Lanes>(at);
+    lo = v < lo ? v : lo;
+    hi = v > hi ? v : hi;
+  };
+  std::size_t k = 0;
+  for (; k + 16 <= n; k += 16) {
+    take(u + k, lo0, hi0);
+    take(u + k + 4, lo1, hi1);
+    take(u + k + 8, lo2, hi2);
+    take(u + k + 12, lo3, hi3);
+  }
+  if (k + 4 <= n) take(u + k, lo0, hi0), k += 4;
+  if (k + 4 <= n) take(u + k, lo1, hi1), k += 4;
+  if (k + 4 <= n) take(u + k, lo2, hi2), k += 4;
+  if (k < n) take(u + n - 4, lo3, hi3);  // n >= uw >= 8
+  const std::size_t planes = dim == 3 ? ubs : 1, lines = dim >= 2 ? ubs : 1;
+  Lanes top0 = {0, 0, 0, 0}, top1 = top0;
+  double largest = 0;
+  for (std::size_t p = 0; p < planes; ++p)
     for (std::size_t j = 0; j < lines; ++j) {
-      const double* row = u + (k * lines + j) * uw;
+      const double* row = u + ((dim == 3 ? (p + ug) * uw : 0) + (dim >= 2 ? j + ug : 0)) * uw + ug;
       std::size_t i = 0;
-      for (; i + 4 <= uw; i += 4) {
-        Lanes v;
-        std::memcpy(&v, row + i, sizeof v);
-        lo = v < lo ? v : lo;
-        hi = v > hi ? v : hi;
+      for (; i + 8 <= ubs; i += 8) {
+        const Lanes a = magnitude_of(load<Lanes>(row + i)), b = magnitude_of(load<Lanes>(row + i + 4));
+        top0 = a > top0 ? a : top0;
+        top1 = b > top1 ? b : top1;
       }
-      for (; i < uw; ++i) {
-        low = row[i] < low ? row[i] : low;
-        high = row[i] > high ? row[i] : high;
-      }
-      if ((dim == 3 && !interior(k)) || (dim >= 2 && !interior(j))) continue;
-      const double* inside = row + ug;
-      i = 0;
       for (; i + 4 <= ubs; i += 4) {
-        Lanes v;
-        std::memcpy(&v, inside + i, sizeof v);
-        v = magnitude_of(v);
-        top = v > top ? v : top;
+        const Lanes a = magnitude_of(load<Lanes>(row + i));
+        top0 = a > top0 ? a : top0;
       }
       for (; i < ubs; ++i) {
-        const double v = std::abs(inside[i]);
+        const double v = std::abs(row[i]);
         largest = v > largest ? v : largest;
       }
     }
+  double low = u[0], high = u[0];
   for (int l = 0; l < 4; ++l) {
-    low = lo[l] < low ? lo[l] : low;
-    high = hi[l] > high ? hi[l] : high;
-    largest = top[l] > largest ? top[l] : largest;
+    low = std::min({low, lo0[l], lo1[l], lo2[l], lo3[l]}, [](double a, double b) { return a < b; });
+    high = std::max({high, hi0[l], hi1[l], hi2[l], hi3[l]}, [](double a, double b) { return a < b; });
+    largest = std::max({largest, top0[l], top1[l]});
   }
   return {low, high, largest};
 }
