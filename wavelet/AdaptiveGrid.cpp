@@ -1830,18 +1830,16 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_pass(const ThresholdConfig& th, AdaptPass p
     // form (most families around a moving fine band). Flags at each family's first member.
     enum : char { kNotAsking, kBalanceKeeps, kMayCoarsen };
     std::vector<char> family(n, kNotAsking);
-    std::vector<std::array<std::size_t, Key::kChildren>> members_of(n);
     for (std::size_t l = 0; l < n; ++l)
-      if (forest_.family_asks_to_coarsen(l, tags, &members_of[l]))
-        family[l] = forest_.balance_keeps_family(members_of[l]) ? kBalanceKeeps : kMayCoarsen;
+      if (forest_.family_asks_to_coarsen(l, tags))
+        family[l] = forest_.family_touches_finer(l) ? kBalanceKeeps : kMayCoarsen;
     auto in_family_that_may_coarsen = [&](std::size_t leaf) {
-      if (leaves[leaf].level == 0) return false;
-      const auto first = forest_.find(leaves[leaf].parent().child(0));
-      return first && family[*first] == kMayCoarsen;
+      const std::size_t first = forest_.family_first(leaf);
+      return first != BlockForest<Dim>::kNoFamily && family[first] == kMayCoarsen;
     };
     for (std::size_t l = first_leaf_; l < first_leaf_ + local_blocks(); ++l) {
       if (family[l] == kNotAsking) continue;
-      const auto& members = members_of[l];
+      const auto& members = forest_.family_members(l);
       if (family[l] == kBalanceKeeps) {
         if (!th.adjacent_blocks) continue;
         // The leaves around the parent no finer than its children (those the loop below keeps)

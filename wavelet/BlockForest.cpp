@@ -165,15 +165,56 @@ const std::vector<Neighbour<Dim>>& BlockForest<Dim>::leaf_neighbours(std::size_t
 }
 
 template <int Dim>
+const typename BlockForest<Dim>::Families& BlockForest<Dim>::families() const {
+  Families& f = families_;
+  if (f.known) return f;
+  const std::size_t n = leaves_.size();
+  f.first.assign(n, kNoFamily);
+  f.members.resize(n);
+  f.touches_finer.assign(n, 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Key& leaf = leaves_[i];
+    if (leaf.level == 0 || leaf.child_index() != 0) continue;
+    auto& members = f.members[i];
+    bool complete = true;
+    for (int k = 0; k < Key::kChildren && complete; ++k) {
+      const auto j = find(leaf.parent().child(k));
+      complete = j.has_value();
+      if (complete) members[static_cast<std::size_t>(k)] = *j;
+    }
+    if (!complete) continue;
+    for (const std::size_t m : members) f.first[m] = i;
+  }
+  f.known = true;
+  return f;
+}
+
+template <int Dim>
+std::size_t BlockForest<Dim>::family_first(std::size_t leaf) const {
+  return families().first[leaf];
+}
+
+template <int Dim>
+const std::array<std::size_t, BlockKey<Dim>::kChildren>& BlockForest<Dim>::family_members(std::size_t first) const {
+  return families().members[first];
+}
+
+template <int Dim>
+bool BlockForest<Dim>::family_touches_finer(std::size_t first) const {
+  const Families& f = families();
+  char& known = families_.touches_finer[first];  // 0 not asked yet, 1 no, 2 yes
+  if (known == 0) known = balance_keeps_family(f.members[first]) ? 2 : 1;
+  return known == 2;
+}
+
+template <int Dim>
 bool BlockForest<Dim>::family_asks_to_coarsen(std::size_t i, std::span<const AdaptTag> tags,
                                               std::array<std::size_t, Key::kChildren>* members) const {
-  const Key& first = leaves_[i];
-  if (first.level == 0 || first.child_index() != 0 || tags[i] != AdaptTag::kCoarsen) return false;
-  for (int k = 0; k < Key::kChildren; ++k) {
-    const auto j = find(first.parent().child(k));
-    if (!j || tags[*j] != AdaptTag::kCoarsen) return false;
-    if (members) (*members)[static_cast<std::size_t>(k)] = *j;
-  }
+  if (tags[i] != AdaptTag::kCoarsen || family_first(i) != i) return false;
+  const auto& family = families().members[i];
+  for (const std::size_t m : family)
+    if (tags[m] != AdaptTag::kCoarsen) return false;
+  if (members) *members = family;
   return true;
 }
 
@@ -355,6 +396,7 @@ void BlockForest<Dim>::sort_and_index() {
   // grid changes its leaves most cycles, and a fresh list per leaf was a tenth of a 1D cycle).
   // (leaf_neighbours() marks them unknown and sizes the cache on its next call.)
   leaf_neighbours_known_.clear();
+  families_.known = false;
   curve_.resize(order.size());
   for (std::size_t i = 0; i < order.size(); ++i) {
     leaves_[i] = order[i].second;

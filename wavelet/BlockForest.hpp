@@ -131,6 +131,18 @@ class BlockForest {
   /// empty: nothing refines).
   bool balance_keeps_family(const std::array<std::size_t, Key::kChildren>& members, std::span<const char> refine = {}) const;
 
+  /// Families whose members are all leaves, found once per leaf set (every coarsen pass asks
+  /// about them, leaf by leaf, through the leaf index): for a leaf, its family's child 0 as a
+  /// leaf index, or kNoFamily when the leaf is at level 0 or a sibling is not a leaf.
+  static constexpr std::size_t kNoFamily = static_cast<std::size_t>(-1);
+  std::size_t family_first(std::size_t leaf) const;
+  /// The members of the family whose child 0 is leaf `first` (family_first(first) == first), in
+  /// child order.
+  const std::array<std::size_t, BlockKey<Dim>::kChildren>& family_members(std::size_t first) const;
+  /// balance_keeps_family(family_members(first)) with nothing refining: a member has a finer
+  /// neighbour.
+  bool family_touches_finer(std::size_t first) const;
+
   /// Refine/coarsen by one tag per leaf (in leaves() order), then enforce 2:1 balance.
   AdaptCounts adapt(std::span<const AdaptTag> tags);
   /// What adapt(tags) would do, without doing it: the counts, and the leaves after it in
@@ -166,6 +178,17 @@ class BlockForest {
   std::vector<std::uint64_t> curve_;  // per leaf, its curve_index
   mutable std::vector<std::vector<Neighbour<Dim>>> leaf_neighbours_;  // leaf_neighbours' cache
   mutable std::vector<char> leaf_neighbours_known_;
+  /// family_first's, family_members' and family_touches_finer's tables (per leaf; the last two
+  /// at each family's child 0), built on first use after the leaves change (the last filled in
+  /// as families are asked about).
+  struct Families {
+    bool known = false;
+    std::vector<std::size_t> first;
+    std::vector<std::array<std::size_t, BlockKey<Dim>::kChildren>> members;
+    std::vector<char> touches_finer;
+  };
+  mutable Families families_;
+  const Families& families() const;
 };
 
 /// Hilbert index of a point with `bits` bits per coordinate (Skilling's transpose method,
