@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <random>
 #include <set>
 
@@ -189,6 +190,36 @@ void expect_symmetric_neighbours(const gw::BlockForest<Dim>& forest) {
   }
 }
 
+// The family tables (found once per leaf set, kept until the leaves change) against the leaf
+// index and the neighbour lists, asked after every adaptation.
+template <int Dim>
+void expect_families_as_found(const gw::BlockForest<Dim>& forest) {
+  using Key = gw::BlockKey<Dim>;
+  std::vector<gw::Neighbour<Dim>> around;
+  for (std::size_t i = 0; i < forest.size(); ++i) {
+    const Key& leaf = forest.leaves()[i];
+    std::array<std::size_t, Key::kChildren> members{};
+    bool complete = leaf.level > 0;
+    for (int k = 0; k < Key::kChildren && complete; ++k) {
+      const auto j = forest.find(leaf.parent().child(k));
+      complete = j.has_value();
+      if (complete) members[static_cast<std::size_t>(k)] = *j;
+    }
+    if (!complete) {
+      EXPECT_EQ(forest.family_first(i), gw::BlockForest<Dim>::kNoFamily) << "leaf " << i;
+      continue;
+    }
+    ASSERT_EQ(forest.family_first(i), members[0]) << "leaf " << i;
+    EXPECT_EQ(forest.family_members(members[0]), members) << "leaf " << i;
+    bool finer = false;
+    for (const std::size_t m : members) {
+      forest.neighbours(forest.leaves()[m], around);
+      for (const auto& nb : around) finer = finer || nb.level_difference == +1;
+    }
+    EXPECT_EQ(forest.family_touches_finer(members[0]), finer) << "leaf " << i;
+  }
+}
+
 template <int Dim>
 void random_adaptation(std::array<int, Dim> roots, std::array<bool, Dim> periodic, gw::CurveOrder curve,
                        int steps, unsigned seed, double p_refine) {
@@ -216,6 +247,7 @@ void random_adaptation(std::array<int, Dim> roots, std::array<bool, Dim> periodi
     for (std::size_t i = 1; i < forest.size(); ++i)
       ASSERT_LT(forest.curve_index(forest.leaves()[i - 1]), forest.curve_index(forest.leaves()[i]));
     expect_symmetric_neighbours(forest);
+    expect_families_as_found(forest);
   }
   EXPECT_GT(largest, 4 * root_leaves.size()) << "the random sequence never refined much";
   // Coarsening everything, one level per pass, must give back the root forest.
