@@ -263,24 +263,28 @@ double largest_magnitude(const double* u, int dim, int bs, int g) {
   const auto ubs = kBlockSize > 0 ? static_cast<std::size_t>(kBlockSize) : static_cast<std::size_t>(bs);
   const auto ug = static_cast<std::size_t>(g), uw = ubs + 2 * ug;
   const std::size_t planes = dim == 3 ? ubs : 1, lines = dim >= 2 ? ubs : 1;
-  Lanes top = {0, 0, 0, 0};
+  // Two groups of lanes, two independent chains of selects (NaN lanes keep the old value).
+  Lanes top0 = {0, 0, 0, 0}, top1 = top0;
   double largest = 0;
   for (std::size_t k = 0; k < planes; ++k)
     for (std::size_t j = 0; j < lines; ++j) {
       const double* row = u + ((dim == 3 ? (k + ug) * uw : 0) + (dim >= 2 ? j + ug : 0)) * uw + ug;
       std::size_t i = 0;
+      for (; i + 8 <= ubs; i += 8) {
+        const Lanes a = magnitude_of(load<Lanes>(row + i)), b = magnitude_of(load<Lanes>(row + i + 4));
+        top0 = a > top0 ? a : top0;
+        top1 = b > top1 ? b : top1;
+      }
       for (; i + 4 <= ubs; i += 4) {
-        Lanes v;
-        std::memcpy(&v, row + i, sizeof v);
-        v = magnitude_of(v);
-        top = v > top ? v : top;  // NaN lanes keep the old value
+        const Lanes a = magnitude_of(load<Lanes>(row + i));
+        top0 = a > top0 ? a : top0;
       }
       for (; i < ubs; ++i) {
         const double v = std::abs(row[i]);
         largest = v > largest ? v : largest;
       }
     }
-  for (int l = 0; l < 4; ++l) largest = top[l] > largest ? top[l] : largest;
+  for (int l = 0; l < 4; ++l) largest = std::max({largest, top0[l], top1[l]});
   return largest;
 }
 
@@ -297,8 +301,8 @@ namespace {
 /// contiguous, in four groups of lanes (four independent chains of selects: one group, row by
 /// row with scalar tails, waited on each select's latency), the last group of a length not a
 /// multiple of four overlapping the one before (a value met twice changes no extreme); the
-/// selects keep the old value at a NaN, as value_range's. Then the interior rows' values into
-/// two groups of magnitude lanes (as largest_magnitude). Minimum, maximum and the largest
+/// selects keep the old value at a NaN, as value_range's. Then largest_magnitude over the
+/// interior, whose rows are still in cache. Minimum, maximum and the largest
 /// magnitude are exact whatever the order, so they are those of the two passes (of +0 and -0
 /// the range keeps whichever came first); the range starts at u[0], as value_range's does (a
 /// NaN there stays).
@@ -327,33 +331,12 @@ BlockExtent extent(const double* u, int dim, int bs, int g) {
   if (k + 4 <= n) take(u + k, lo1, hi1), k += 4;
   if (k + 4 <= n) take(u + k, lo2, hi2), k += 4;
   if (k < n) take(u + n - 4, lo3, hi3);  // n >= uw >= 8
-  const std::size_t planes = dim == 3 ? ubs : 1, lines = dim >= 2 ? ubs : 1;
-  Lanes top0 = {0, 0, 0, 0}, top1 = top0;
-  double largest = 0;
-  for (std::size_t p = 0; p < planes; ++p)
-    for (std::size_t j = 0; j < lines; ++j) {
-      const double* row = u + ((dim == 3 ? (p + ug) * uw : 0) + (dim >= 2 ? j + ug : 0)) * uw + ug;
-      std::size_t i = 0;
-      for (; i + 8 <= ubs; i += 8) {
-        const Lanes a = magnitude_of(load<Lanes>(row + i)), b = magnitude_of(load<Lanes>(row + i + 4));
-        top0 = a > top0 ? a : top0;
-        top1 = b > top1 ? b : top1;
-      }
-      for (; i + 4 <= ubs; i += 4) {
-        const Lanes a = magnitude_of(load<Lanes>(row + i));
-        top0 = a > top0 ? a : top0;
-      }
-      for (; i < ubs; ++i) {
-        const double v = std::abs(row[i]);
-        largest = v > largest ? v : largest;
-      }
-    }
   double low = u[0], high = u[0];
   for (int l = 0; l < 4; ++l) {
-    low = std::min({low, lo0[l], lo1[l], lo2[l], lo3[l]}, [](double a, double b) { return a < b; });
-    high = std::max({high, hi0[l], hi1[l], hi2[l], hi3[l]}, [](double a, double b) { return a < b; });
-    largest = std::max({largest, top0[l], top1[l]});
+    low = std::min({low, lo0[l], lo1[l], lo2[l], lo3[l]});  // a NaN low (u[0]) stays: nothing is below it
+    high = std::max({high, hi0[l], hi1[l], hi2[l], hi3[l]});
   }
+  const double largest = largest_magnitude<kBlockSize>(u, dim, bs, g);
   return {low, high, largest};
 }
 
