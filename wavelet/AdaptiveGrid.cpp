@@ -1833,26 +1833,15 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_pass(const ThresholdConfig& th, AdaptPass p
     for (std::size_t l = 0; l < n; ++l)
       if (forest_.family_asks_to_coarsen(l, tags))
         family[l] = forest_.family_touches_finer(l) ? kBalanceKeeps : kMayCoarsen;
-    auto in_family_that_may_coarsen = [&](std::size_t leaf) {
-      const std::size_t first = forest_.family_first(leaf);
-      return first != BlockForest<Dim>::kNoFamily && family[first] == kMayCoarsen;
-    };
+    // The leaves around a family's parent no finer than its children (those the loop below
+    // keeps) are the members' neighbours no finer than them: the members tile the parent. A
+    // balance-kept family's parent matters where one of those is in a family that may coarsen.
+    std::vector<char> may_coarsen(n, 0);
+    for (std::size_t l = 0; l < n; ++l) may_coarsen[l] = family[l] == kMayCoarsen;
+    const std::vector<char> beside_may_coarsen = th.adjacent_blocks ? forest_.families_beside(may_coarsen) : std::vector<char>(n, 0);
     for (std::size_t l = first_leaf_; l < first_leaf_ + local_blocks(); ++l) {
       if (family[l] == kNotAsking) continue;
-      const auto& members = forest_.family_members(l);
-      if (family[l] == kBalanceKeeps) {
-        if (!th.adjacent_blocks) continue;
-        // The leaves around the parent no finer than its children (those the loop below keeps)
-        // are the members' neighbours no finer than them: the members tile the parent. (The
-        // members' own family cannot coarsen.)
-        const bool matters = std::any_of(members.begin(), members.end(), [&](std::size_t m) {
-          const auto& around_member = forest_.leaf_neighbours(m);
-          return std::any_of(around_member.begin(), around_member.end(), [&](const Neighbour<Dim>& nb) {
-            return nb.level_difference <= 0 && nb.key.level >= 1 && in_family_that_may_coarsen(nb.leaf);
-          });
-        });
-        if (!matters) continue;
-      }
+      if (family[l] == kBalanceKeeps && (!th.adjacent_blocks || !beside_may_coarsen[l])) continue;
       if (parent_significant(leaves[l].parent(), th, scale)) local_keep[l - first_leaf_] = 1;
     }
     gather_leaf_flags(local_keep, keep);

@@ -208,6 +208,20 @@ bool BlockForest<Dim>::family_touches_finer(std::size_t first) const {
 }
 
 template <int Dim>
+std::vector<char> BlockForest<Dim>::families_beside(std::span<const char> flagged) const {
+  std::vector<char> beside(leaves_.size(), 0);
+  for (std::size_t b = 0; b < flagged.size(); ++b) {
+    if (!flagged[b] || family_first(b) != b) continue;
+    for (const std::size_t m : family_members(b))
+      for (const auto& nb : leaf_neighbours(m)) {
+        const std::size_t first = nb.level_difference >= 0 ? family_first(nb.leaf) : kNoFamily;
+        if (first != kNoFamily) beside[first] = 1;
+      }
+  }
+  return beside;
+}
+
+template <int Dim>
 bool BlockForest<Dim>::family_asks_to_coarsen(std::size_t i, std::span<const AdaptTag> tags,
                                               std::array<std::size_t, Key::kChildren>* members) const {
   if (tags[i] != AdaptTag::kCoarsen || family_first(i) != i) return false;

@@ -143,6 +143,12 @@ class BlockForest {
   /// neighbour.
   bool family_touches_finer(std::size_t first) const;
 
+  /// The families (flags at their child 0, one per leaf) one of whose members has a neighbour
+  /// no finer than itself in a family flagged in `flagged` (flags at child 0). Found from the
+  /// flagged families' side (a member's neighbours no coarser than it are those whose
+  /// neighbour it is, no finer than them): cheap where few are flagged.
+  std::vector<char> families_beside(std::span<const char> flagged) const;
+
   /// Refine/coarsen by one tag per leaf (in leaves() order), then enforce 2:1 balance.
   AdaptCounts adapt(std::span<const AdaptTag> tags);
   /// What adapt(tags) would do, without doing it: the counts, and the leaves after it in

@@ -218,6 +218,23 @@ void expect_families_as_found(const gw::BlockForest<Dim>& forest) {
     }
     EXPECT_EQ(forest.family_touches_finer(members[0]), finer) << "leaf " << i;
   }
+  // families_beside, found from the flagged side, against its definition from the other: every
+  // third complete family flagged.
+  std::vector<char> flagged(forest.size(), 0), expected(forest.size(), 0);
+  int complete = 0;
+  for (std::size_t i = 0; i < forest.size(); ++i)
+    if (forest.family_first(i) == i) flagged[i] = complete++ % 3 == 0;
+  for (std::size_t i = 0; i < forest.size(); ++i) {
+    if (forest.family_first(i) != i) continue;
+    for (const std::size_t m : forest.family_members(i)) {
+      forest.neighbours(forest.leaves()[m], around);
+      for (const auto& nb : around) {
+        const std::size_t first = forest.family_first(nb.leaf);
+        if (nb.level_difference <= 0 && first != gw::BlockForest<Dim>::kNoFamily && flagged[first]) expected[i] = 1;
+      }
+    }
+  }
+  EXPECT_EQ(forest.families_beside(flagged), expected);
 }
 
 template <int Dim>
