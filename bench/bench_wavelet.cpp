@@ -135,7 +135,7 @@ void BM_LargestDetails(benchmark::State& state) {
 }
 
 // The range bound's kernel: every block's range of values (ghosts included) and interior
-// magnitude in one read, what field_scales computes per field for each block whose bound is tried.
+// magnitude, what field_scales computes per field for each block whose bound is tried.
 template <int Dim>
 void BM_BlockExtent(benchmark::State& state) {
   auto grid = disc_grid<Dim>(static_cast<int>(state.range(0)), static_cast<int>(state.range(1)));

@@ -209,6 +209,9 @@ bool BlockForest<Dim>::family_touches_finer(std::size_t first) const {
 
 template <int Dim>
 std::vector<char> BlockForest<Dim>::families_beside(std::span<const char> flagged) const {
+  if (flagged.size() != leaves_.size())
+    throw std::invalid_argument("BlockForest::families_beside: " + std::to_string(flagged.size()) + " flags for " +
+                                std::to_string(leaves_.size()) + " leaves");
   std::vector<char> beside(leaves_.size(), 0);
   for (std::size_t b = 0; b < flagged.size(); ++b) {
     if (!flagged[b] || family_first(b) != b) continue;

@@ -140,11 +140,12 @@ class BlockForest {
   /// child order.
   const std::array<std::size_t, BlockKey<Dim>::kChildren>& family_members(std::size_t first) const;
   /// balance_keeps_family(family_members(first)) with nothing refining: a member has a finer
-  /// neighbour.
+  /// neighbour (`first` as for family_members).
   bool family_touches_finer(std::size_t first) const;
 
   /// The families (flags at their child 0, one per leaf) one of whose members has a neighbour
-  /// no finer than itself in a family flagged in `flagged` (flags at child 0). Found from the
+  /// no finer than itself in a family flagged in `flagged` (one flag per leaf, read at each
+  /// family's child 0; throws std::invalid_argument for another length). Found from the
   /// flagged families' side (a member's neighbours no coarser than it are those whose
   /// neighbour it is, no finer than them): cheap where few are flagged.
   std::vector<char> families_beside(std::span<const char> flagged) const;

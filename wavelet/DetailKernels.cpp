@@ -302,7 +302,7 @@ namespace {
 /// row with scalar tails, waited on each select's latency), the last group of a length not a
 /// multiple of four overlapping the one before (a value met twice changes no extreme); the
 /// selects keep the old value at a NaN, as value_range's. Then largest_magnitude over the
-/// interior, whose rows are still in cache. Minimum, maximum and the largest
+/// interior, just read (in cache up to 16^3-point arrays). Minimum, maximum and the largest
 /// magnitude are exact whatever the order, so they are those of the two passes (of +0 and -0
 /// the range keeps whichever came first); the range starts at u[0], as value_range's does (a
 /// NaN there stays).
@@ -320,6 +320,7 @@ BlockExtent extent(const double* u, int dim, int bs, int g) {
     lo = v < lo ? v : lo;
     hi = v > hi ? v : hi;
   };
+
   std::size_t k = 0;
   for (; k + 16 <= n; k += 16) {
     take(u + k, lo0, hi0);
@@ -330,7 +331,11 @@ BlockExtent extent(const double* u, int dim, int bs, int g) {
   if (k + 4 <= n) take(u + k, lo0, hi0), k += 4;
   if (k + 4 <= n) take(u + k, lo1, hi1), k += 4;
   if (k + 4 <= n) take(u + k, lo2, hi2), k += 4;
-  if (k < n) take(u + n - 4, lo3, hi3);  // n >= uw >= 8
+  if (k < n && n >= 4) take(u + n - 4, lo3, hi3), k = n;
+  for (; k < n; ++k) {  // an array too short for one group of lanes (no block array is)
+    lo0[0] = u[k] < lo0[0] ? u[k] : lo0[0];
+    hi0[0] = u[k] > hi0[0] ? u[k] : hi0[0];
+  }
   double low = u[0], high = u[0];
   for (int l = 0; l < 4; ++l) {
     low = std::min({low, lo0[l], lo1[l], lo2[l], lo3[l]});  // a NaN low (u[0]) stays: nothing is below it

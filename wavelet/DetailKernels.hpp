@@ -45,9 +45,10 @@ std::pair<double, double> value_range(const double* u, std::size_t n);
 /// g ghost layers per side along each (0 if all are NaN): the linf scale of the threshold.
 double interior_largest_magnitude(const double* u, int dim, int bs, int g);
 
-/// value_range of the whole block array and interior_largest_magnitude in one pass, the same
-/// values (a zero's sign in the range may differ; the tagging reads high - low and magnitudes):
-/// the tagging needs both of every block and field, and each pass read the block from memory.
+/// value_range of the whole block array and interior_largest_magnitude, the same values (a
+/// zero's sign in the range may differ; the tagging reads high - low and magnitudes), in one
+/// call: the tagging needs both of every block and field, and the interior is read again while
+/// the array's read has left it in cache.
 struct BlockExtent {
   double low, high, interior_magnitude;
 };

@@ -1030,26 +1030,50 @@ TEST(DetailKernels, InteriorLargestMagnitudeMatchesPlainLoop) {
   });
 }
 
-// The one-pass extent the tagging reads (field_scales hands its ranges to the range bound)
-// against the two passes it replaces, equal values (a zero's sign aside, which EXPECT_EQ does not
-// tell apart and the tagging never reads): the range of the whole array (ghosts included,
-// NaNs passed over, a NaN first value kept, as value_range does) and the interior's largest
-// magnitude, for the sizes compiled apart and a general one.
+// The extent the tagging reads (field_scales hands its ranges to the range bound) against
+// value_range and a plain loop, equal values (a zero's sign aside, which EXPECT_EQ does not tell
+// apart and the tagging never reads): the range of the whole array (ghosts included, NaNs passed
+// over, a NaN first value kept, as value_range does) and the interior's largest magnitude, for
+// the sizes compiled apart and a general one. The extremes are moved through the array (the
+// first and last 64 positions and every 37th), so each group of lanes and the overlapping last
+// one decides them somewhere.
 TEST(DetailKernels, BlockExtentIsValueRangeAndInteriorMagnitude) {
   for_each_block_array(0.91, [](int dim, int bs, int g, std::vector<double>& u) {
-    const std::size_t volume = u.size();
-    u[volume / 2 + 1] = std::numeric_limits<double>::quiet_NaN();  // passed over
-    u[volume - 1] = -7.5;  // a ghost (the last corner): in the range, not in the magnitude
-    u[1] = 9.25;           // a ghost too
-    const auto extent = gw::block_extent(u.data(), dim, bs, g);
-    const auto [low, high] = gw::value_range(u.data(), volume);
-    EXPECT_EQ(extent.low, low) << "dim " << dim << " bs " << bs;
-    EXPECT_EQ(extent.high, high) << "dim " << dim << " bs " << bs;
-    EXPECT_EQ(extent.low, -7.5);
-    EXPECT_EQ(extent.high, 9.25);
-    EXPECT_EQ(extent.interior_magnitude, gw::interior_largest_magnitude(u.data(), dim, bs, g))
-        << "dim " << dim << " bs " << bs;
-    EXPECT_LT(extent.interior_magnitude, 1.1);
+    const int w = bs + 2 * g;
+    const std::size_t volume = u.size(), skipped = volume / 2 + 1;
+    u[skipped] = std::numeric_limits<double>::quiet_NaN();  // passed over
+    std::vector<char> interior(volume, 1);
+    for (std::size_t p = 0; p < volume; ++p) {
+      std::size_t rest = p;
+      for (int a = 0; a < dim; ++a) {
+        const int i = static_cast<int>(rest % static_cast<std::size_t>(w));
+        rest /= static_cast<std::size_t>(w);
+        if (i < g || i >= g + bs) interior[p] = 0;
+      }
+    }
+    auto plain_magnitude = [&] {
+      double m = 0;
+      for (std::size_t p = 0; p < volume; ++p)
+        if (interior[p] && !std::isnan(u[p])) m = std::max(m, std::abs(u[p]));
+      return m;
+    };
+    for (std::size_t p = 0; p < volume; ++p) {
+      if (!(p < 64 || p + 64 >= volume || p % 37 == 0) || p == skipped) continue;
+      const std::size_t q = (p * 7 + 3) % volume == skipped || (p * 7 + 3) % volume == p ? (p + 1) % volume : (p * 7 + 3) % volume;
+      if (q == skipped) continue;
+      const double at_p = u[p], at_q = u[q];
+      u[p] = -7.5;
+      u[q] = 9.25;
+      const auto extent = gw::block_extent(u.data(), dim, bs, g);
+      const auto [low, high] = gw::value_range(u.data(), volume);
+      EXPECT_EQ(extent.low, -7.5) << "dim " << dim << " bs " << bs << " at " << p;
+      EXPECT_EQ(extent.high, 9.25) << "dim " << dim << " bs " << bs << " at " << q;
+      EXPECT_EQ(low, -7.5);
+      EXPECT_EQ(high, 9.25);
+      EXPECT_EQ(extent.interior_magnitude, plain_magnitude()) << "dim " << dim << " bs " << bs << " at " << p << ", " << q;
+      u[p] = at_p;
+      u[q] = at_q;
+    }
     u[0] = std::numeric_limits<double>::quiet_NaN();  // a NaN first value stays, in both
     const auto first_nan = gw::block_extent(u.data(), dim, bs, g);
     EXPECT_TRUE(std::isnan(first_nan.low) && std::isnan(gw::value_range(u.data(), volume).first));
