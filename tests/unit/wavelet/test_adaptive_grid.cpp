@@ -1003,29 +1003,40 @@ void for_each_block_array(double frequency, Check&& check) {
     }
 }
 
+// Which points of a block array (dim axes, bs interior points and g ghost layers per side) are
+// interior ones, and the largest |u| over them by a plain loop (NaNs passed over).
+std::vector<char> interior_points(int dim, int bs, int g) {
+  const int w = bs + 2 * g;
+  const auto volume = static_cast<std::size_t>(std::pow(w, dim));
+  std::vector<char> interior(volume, 1);
+  for (std::size_t p = 0; p < volume; ++p) {
+    std::size_t rest = p;
+    for (int a = 0; a < dim; ++a) {
+      const int i = static_cast<int>(rest % static_cast<std::size_t>(w));
+      rest /= static_cast<std::size_t>(w);
+      if (i < g || i >= g + bs) interior[p] = 0;
+    }
+  }
+  return interior;
+}
+double plain_interior_magnitude(const std::vector<double>& u, const std::vector<char>& interior) {
+  double largest = 0;
+  for (std::size_t p = 0; p < u.size(); ++p)
+    if (interior[p] && !std::isnan(u[p])) largest = std::max(largest, std::abs(u[p]));
+  return largest;
+}
+
 // The linf scale's kernel (compiled for block sizes 8, 16 and 32, general otherwise) against a
 // plain loop over the interior points: the same maximum, ghosts never read, NaNs passed over.
 TEST(DetailKernels, InteriorLargestMagnitudeMatchesPlainLoop) {
   for_each_block_array(0.37, [](int dim, int bs, int g, std::vector<double>& u) {
-    const int w = bs + 2 * g;
-    const std::size_t volume = u.size();
-    std::vector<char> interior(volume, 1);
-    for (std::size_t p = 0; p < volume; ++p) {
-      std::size_t rest = p;
-      for (int a = 0; a < dim; ++a) {
-        const int i = static_cast<int>(rest % static_cast<std::size_t>(w));
-        rest /= static_cast<std::size_t>(w);
-        if (i < g || i >= g + bs) interior[p] = 0;
-      }
+    const auto interior = interior_points(dim, bs, g);
+    for (std::size_t p = 0; p < u.size(); ++p)
       if (!interior[p]) u[p] = 1e3;  // a ghost: never read
-    }
     const auto first_interior =
         static_cast<std::size_t>(std::find(interior.begin(), interior.end(), 1) - interior.begin());
     u[first_interior] = std::numeric_limits<double>::quiet_NaN();  // passed over
-    double expected = 0;
-    for (std::size_t p = 0; p < volume; ++p)
-      if (interior[p] && !std::isnan(u[p])) expected = std::max(expected, std::abs(u[p]));
-    EXPECT_EQ(gw::interior_largest_magnitude(u.data(), dim, bs, g), expected)
+    EXPECT_EQ(gw::interior_largest_magnitude(u.data(), dim, bs, g), plain_interior_magnitude(u, interior))
         << "dim " << dim << " bs " << bs;
   });
 }
@@ -1039,24 +1050,9 @@ TEST(DetailKernels, InteriorLargestMagnitudeMatchesPlainLoop) {
 // one decides them somewhere.
 TEST(DetailKernels, BlockExtentIsValueRangeAndInteriorMagnitude) {
   for_each_block_array(0.91, [](int dim, int bs, int g, std::vector<double>& u) {
-    const int w = bs + 2 * g;
     const std::size_t volume = u.size(), skipped = volume / 2 + 1;
     u[skipped] = std::numeric_limits<double>::quiet_NaN();  // passed over
-    std::vector<char> interior(volume, 1);
-    for (std::size_t p = 0; p < volume; ++p) {
-      std::size_t rest = p;
-      for (int a = 0; a < dim; ++a) {
-        const int i = static_cast<int>(rest % static_cast<std::size_t>(w));
-        rest /= static_cast<std::size_t>(w);
-        if (i < g || i >= g + bs) interior[p] = 0;
-      }
-    }
-    auto plain_magnitude = [&] {
-      double m = 0;
-      for (std::size_t p = 0; p < volume; ++p)
-        if (interior[p] && !std::isnan(u[p])) m = std::max(m, std::abs(u[p]));
-      return m;
-    };
+    const auto interior = interior_points(dim, bs, g);
     for (std::size_t p = 0; p < volume; ++p) {
       if (!(p < 64 || p + 64 >= volume || p % 37 == 0) || p == skipped) continue;
       const std::size_t q = (p * 7 + 3) % volume == skipped || (p * 7 + 3) % volume == p ? (p + 1) % volume : (p * 7 + 3) % volume;
@@ -1070,7 +1066,7 @@ TEST(DetailKernels, BlockExtentIsValueRangeAndInteriorMagnitude) {
       EXPECT_EQ(extent.high, 9.25) << "dim " << dim << " bs " << bs << " at " << q;
       EXPECT_EQ(low, -7.5);
       EXPECT_EQ(high, 9.25);
-      EXPECT_EQ(extent.interior_magnitude, plain_magnitude()) << "dim " << dim << " bs " << bs << " at " << p << ", " << q;
+      EXPECT_EQ(extent.interior_magnitude, plain_interior_magnitude(u, interior)) << "dim " << dim << " bs " << bs << " at " << p << ", " << q;
       u[p] = at_p;
       u[q] = at_q;
     }
