@@ -1836,9 +1836,12 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_pass(const ThresholdConfig& th, AdaptPass p
     // The leaves around a family's parent no finer than its children (those the loop below
     // keeps) are the members' neighbours no finer than them: the members tile the parent. A
     // balance-kept family's parent matters where one of those is in a family that may coarsen.
-    std::vector<char> may_coarsen(n, 0);
-    for (std::size_t l = 0; l < n; ++l) may_coarsen[l] = family[l] == kMayCoarsen;
-    const std::vector<char> beside_may_coarsen = th.adjacent_blocks ? forest_.families_beside(may_coarsen) : std::vector<char>(n, 0);
+    std::vector<char> beside_may_coarsen;  // only read with the adjacent zone
+    if (th.adjacent_blocks) {
+      std::vector<char> may_coarsen(n, 0);
+      for (std::size_t l = 0; l < n; ++l) may_coarsen[l] = family[l] == kMayCoarsen;
+      beside_may_coarsen = forest_.families_beside(may_coarsen);
+    }
     for (std::size_t l = first_leaf_; l < first_leaf_ + local_blocks(); ++l) {
       if (family[l] == kNotAsking) continue;
       if (family[l] == kBalanceKeeps && (!th.adjacent_blocks || !beside_may_coarsen[l])) continue;

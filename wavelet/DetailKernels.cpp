@@ -229,30 +229,48 @@ DetailMaxima maxima(const double* u, const DetailRows<Dim>& rows, double* along_
 
 }  // namespace
 
-GRAINWAVE_CLONES_AVX2 std::pair<double, double> value_range(const double* u, std::size_t n) {
-  // Two groups of lanes; `v < lo ? v : lo` keeps lo where v is NaN.
-  constexpr std::size_t kStep = 2 * 4;
-  Lanes lo0 = {u[0], u[0], u[0], u[0]}, hi0 = lo0, lo1 = lo0, hi1 = lo0;
+namespace {
+
+/// Smallest and largest of u[0 .. n), NaNs passed over (the selects `v < lo ? v : lo` keep lo
+/// where v is NaN), starting from u[0] (a NaN there stays). Four groups of lanes, four
+/// independent chains of selects (one group waited on each select's latency), the last group of
+/// a length not a multiple of four overlapping the one before (a value met twice changes no
+/// extreme). Named groups: kept in an array, the lanes went through the stack (see Lanes).
+std::pair<double, double> range_in_lanes(const double* u, std::size_t n) {
+  const Lanes first = {u[0], u[0], u[0], u[0]};
+  Lanes lo0 = first, lo1 = first, lo2 = first, lo3 = first, hi0 = first, hi1 = first, hi2 = first, hi3 = first;
+  auto take = [](const double* at, Lanes& lo, Lanes& hi) {
+    const auto v = load<Lanes>(at);
+    lo = v < lo ? v : lo;
+    hi = v > hi ? v : hi;
+  };
   std::size_t k = 0;
-  for (; k + kStep <= n; k += kStep) {
-    Lanes a, b;
-    std::memcpy(&a, u + k, sizeof a);
-    std::memcpy(&b, u + k + 4, sizeof b);
-    lo0 = a < lo0 ? a : lo0;
-    hi0 = a > hi0 ? a : hi0;
-    lo1 = b < lo1 ? b : lo1;
-    hi1 = b > hi1 ? b : hi1;
+  for (; k + 16 <= n; k += 16) {
+    take(u + k, lo0, hi0);
+    take(u + k + 4, lo1, hi1);
+    take(u + k + 8, lo2, hi2);
+    take(u + k + 12, lo3, hi3);
+  }
+  if (k + 4 <= n) take(u + k, lo0, hi0), k += 4;
+  if (k + 4 <= n) take(u + k, lo1, hi1), k += 4;
+  if (k + 4 <= n) take(u + k, lo2, hi2), k += 4;
+  if (k < n && n >= 4) take(u + n - 4, lo3, hi3), k = n;
+  for (; k < n; ++k) {  // fewer than four values in all
+    lo0[0] = u[k] < lo0[0] ? u[k] : lo0[0];
+    hi0[0] = u[k] > hi0[0] ? u[k] : hi0[0];
   }
   double low = u[0], high = u[0];
   for (int l = 0; l < 4; ++l) {
-    low = std::min({low, lo0[l], lo1[l]});
-    high = std::max({high, hi0[l], hi1[l]});
-  }
-  for (; k < n; ++k) {
-    low = u[k] < low ? u[k] : low;
-    high = u[k] > high ? u[k] : high;
+    low = std::min({low, lo0[l], lo1[l], lo2[l], lo3[l]});  // a NaN low (u[0]) stays: nothing is below it
+    high = std::max({high, hi0[l], hi1[l], hi2[l], hi3[l]});
   }
   return {low, high};
+}
+
+}  // namespace
+
+GRAINWAVE_CLONES_AVX2 std::pair<double, double> value_range(const double* u, std::size_t n) {
+  return range_in_lanes(u, n);
 }
 
 namespace {
@@ -297,50 +315,18 @@ GRAINWAVE_CLONES_AVX2 double interior_largest_magnitude(const double* u, int dim
 
 namespace {
 
-/// block_extent for block size kBlockSize (0: any). The range over the whole array, which is
-/// contiguous, in four groups of lanes (four independent chains of selects: one group, row by
-/// row with scalar tails, waited on each select's latency), the last group of a length not a
-/// multiple of four overlapping the one before (a value met twice changes no extreme); the
-/// selects keep the old value at a NaN, as value_range's. Then largest_magnitude over the
-/// interior, just read (in cache up to 16^3-point arrays). Minimum, maximum and the largest
-/// magnitude are exact whatever the order, so they are those of the two passes (of +0 and -0
-/// the range keeps whichever came first); the range starts at u[0], as value_range's does (a
-/// NaN there stays).
+/// block_extent for block size kBlockSize (0: any): the range over the whole array, which is
+/// contiguous, as value_range takes it, then largest_magnitude over the interior, just read (in
+/// cache up to 16^3-point arrays). Minimum, maximum and the largest magnitude are exact whatever
+/// the order, so they are those of the two functions (of +0 and -0 the range keeps whichever
+/// came first).
 template <int kBlockSize>
 BlockExtent extent(const double* u, int dim, int bs, int g) {
   const auto ubs = kBlockSize > 0 ? static_cast<std::size_t>(kBlockSize) : static_cast<std::size_t>(bs);
   const auto ug = static_cast<std::size_t>(g), uw = ubs + 2 * ug;
   std::size_t n = uw;
   for (int a = 1; a < dim; ++a) n *= uw;
-  // Named groups: kept in an array, the lanes went through the stack (see Lanes).
-  const Lanes first = {u[0], u[0], u[0], u[0]};
-  Lanes lo0 = first, lo1 = first, lo2 = first, lo3 = first, hi0 = first, hi1 = first, hi2 = first, hi3 = first;
-  auto take = [](const double* at, Lanes& lo, Lanes& hi) {
-    const auto v = load<Lanes>(at);
-    lo = v < lo ? v : lo;
-    hi = v > hi ? v : hi;
-  };
-
-  std::size_t k = 0;
-  for (; k + 16 <= n; k += 16) {
-    take(u + k, lo0, hi0);
-    take(u + k + 4, lo1, hi1);
-    take(u + k + 8, lo2, hi2);
-    take(u + k + 12, lo3, hi3);
-  }
-  if (k + 4 <= n) take(u + k, lo0, hi0), k += 4;
-  if (k + 4 <= n) take(u + k, lo1, hi1), k += 4;
-  if (k + 4 <= n) take(u + k, lo2, hi2), k += 4;
-  if (k < n && n >= 4) take(u + n - 4, lo3, hi3), k = n;
-  for (; k < n; ++k) {  // an array too short for one group of lanes (no block array is)
-    lo0[0] = u[k] < lo0[0] ? u[k] : lo0[0];
-    hi0[0] = u[k] > hi0[0] ? u[k] : hi0[0];
-  }
-  double low = u[0], high = u[0];
-  for (int l = 0; l < 4; ++l) {
-    low = std::min({low, lo0[l], lo1[l], lo2[l], lo3[l]});  // a NaN low (u[0]) stays: nothing is below it
-    high = std::max({high, hi0[l], hi1[l], hi2[l], hi3[l]});
-  }
+  const auto [low, high] = range_in_lanes(u, n);
   const double largest = largest_magnitude<kBlockSize>(u, dim, bs, g);
   return {low, high, largest};
 }

@@ -1041,13 +1041,13 @@ TEST(DetailKernels, InteriorLargestMagnitudeMatchesPlainLoop) {
   });
 }
 
-// The extent the tagging reads (field_scales hands its ranges to the range bound) against
-// value_range and a plain loop, equal values (a zero's sign aside, which EXPECT_EQ does not tell
-// apart and the tagging never reads): the range of the whole array (ghosts included, NaNs passed
-// over, a NaN first value kept, as value_range does) and the interior's largest magnitude, for
-// the sizes compiled apart and a general one. The extremes are moved through the array (the
-// first and last 64 positions and every 37th), so each group of lanes and the overlapping last
-// one decides them somewhere.
+// The extent the tagging reads (field_scales hands its ranges to the range bound), and
+// value_range, which takes the range the same way, against extremes placed in the array and a
+// plain loop (a zero's sign aside, which EXPECT_EQ does not tell apart and the tagging never
+// reads): the range of the whole array (ghosts included, NaNs passed over, a NaN first value
+// kept) and the interior's largest magnitude, for the sizes compiled apart and a general one. The
+// extremes are moved through the array (the first and last 64 positions and every 37th), so
+// each group of lanes and the overlapping last one decides them somewhere.
 TEST(DetailKernels, BlockExtentIsValueRangeAndInteriorMagnitude) {
   for_each_block_array(0.91, [](int dim, int bs, int g, std::vector<double>& u) {
     const std::size_t volume = u.size(), skipped = volume / 2 + 1;
