@@ -212,6 +212,38 @@ void BM_GhostPlanBuild(benchmark::State& state) {
   state.counters["blocks_per_s"] = benchmark::Counter(blocks, benchmark::Counter::kIsIterationInvariantRate);
 }
 
+// What a moving grid's changing cycle costs when it changes little (most blocks reused): one
+// leaf in the middle of the curve refined, then its children coarsened back, on the disc grid.
+// Time per change (two per iteration), most of it the ghost plan's rebuild and the blocks'
+// storage for the leaves that did not change.
+template <int Dim>
+void BM_ChangingAdaptCycle(benchmark::State& state) {
+  auto grid = disc_grid<Dim>(static_cast<int>(state.range(0)), static_cast<int>(state.range(1)));
+  using Key = gw::BlockKey<Dim>;
+  const auto start = grid.forest().leaves();
+  // The leaf nearest the middle of the curve that can be refined.
+  std::size_t pick = start.size();
+  for (std::size_t d = 0; d < start.size() && pick == start.size(); ++d)
+    for (const std::size_t l : {start.size() / 2 + d, start.size() / 2 - d})
+      if (l < start.size() && start[l].level < static_cast<int>(state.range(0)) && pick == start.size()) pick = l;
+  const Key chosen = start[pick];
+  std::vector<gw::AdaptTag> tags;
+  for (auto _ : state) {
+    const auto leaves = grid.forest().leaves();
+    tags.assign(leaves.size(), gw::AdaptTag::kKeep);
+    tags[static_cast<std::size_t>(std::find(leaves.begin(), leaves.end(), chosen) - leaves.begin())] = gw::AdaptTag::kRefine;
+    grid.adapt_with_tags(tags);
+    const auto refined = grid.forest().leaves();
+    tags.assign(refined.size(), gw::AdaptTag::kKeep);
+    for (std::size_t l = 0; l < refined.size(); ++l)
+      if (refined[l].level == chosen.level + 1 && refined[l].morton >> Dim == chosen.morton) tags[l] = gw::AdaptTag::kCoarsen;
+    grid.adapt_with_tags(tags);
+  }
+  if (grid.forest().leaves().size() != start.size()) state.SkipWithError("the leaf set did not come back");
+  state.counters["blocks"] = static_cast<double>(grid.global_blocks());
+  state.counters["changes_per_s"] = benchmark::Counter(2.0, benchmark::Counter::kIsIterationInvariantRate);
+}
+
 // What a time-stepping solver pays per step once its grid has settled: one adapt_cycle (coarsen
 // and refine passes with their tagging, nothing to change) on the disc grid, its safety zone in.
 template <int Dim>
@@ -248,6 +280,7 @@ BENCHMARK(BM_AdaptCycle<2>)->ArgName("max_level")->Arg(4)->Unit(benchmark::kMill
 BENCHMARK(BM_AdaptCycle<3>)->ArgName("max_level")->Arg(4)->Unit(benchmark::kMillisecond)->Iterations(2);
 BENCHMARK(BM_GhostPlanBuild<2>)->ArgNames({"max_level", "bs"})->Args({4, 8})->Args({4, 16})->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_GhostPlanBuild<3>)->ArgNames({"max_level", "bs"})->Args({3, 8})->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_ChangingAdaptCycle<2>)->ArgNames({"max_level", "bs"})->Args({5, 8})->Args({4, 16})->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_SettledAdaptCycle<2>)->ArgName("max_level")->Arg(4)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_SettledAdaptCycle<3>)->ArgName("max_level")->Arg(4)->Unit(benchmark::kMillisecond)->Iterations(3);
 

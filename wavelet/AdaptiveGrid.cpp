@@ -123,10 +123,16 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   // consecutive points (a ghost row facing one neighbour reads one of its rows), and weighted
   // sums; and the rows with remote terms. In two groups: 0, the ghosts within the stencil reach
   // (AdaptiveGrid::set_stencil_reach; all of them unless it is set), and 1, the others.
+  // Runs of one length that follow each other at fixed strides in the destination and the
+  // source are one rectangle, as a box-to-box copy: a block's side face with two ghost layers
+  // is eight runs of two values (2D, 8^2 blocks), each a few loads and a loop exit that the
+  // next run's length may mispredict; as one rectangle its rows repeat one pattern.
   struct CopyRun {
-    std::int32_t dest, src;  // field array indices (32 bits, as local_src)
-    std::int32_t length;
-    std::int32_t src_slot;  // the local block it reads (a run reads one block's row)
+    std::int32_t dest, src;  // field array indices of the first row (32 bits, as local_src)
+    std::int32_t length;     // values per row
+    std::int32_t src_slot;   // the local block it reads (a rectangle reads one block)
+    std::int32_t rows = 1;
+    std::int32_t dest_stride = 0, src_stride = 0;  // from one row to the next
   };
   // Lists 0 and 1: the two groups; list 2: the rows of the blocks whose rows were built afresh
   // by the last rebuild (both groups: the others' ghosts came through the adaptation unchanged).
@@ -1062,9 +1068,38 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan, const GhostPlan* previ
   // within a block.
   std::array<typename GhostPlan::CopyRun, 3> open_run{};
   std::array<bool, 3> run_open{};
+  // Per list, the block's rectangles so far (GhostPlan::CopyRun), appended when the block is
+  // done: each run closed joins the one it continues (same length, same source block, the next
+  // row at the same strides), else starts one. In array order a row's left-face run and
+  // right-face run alternate, one rectangle each. Only the last few rectangles are tried (a 3D
+  // block's face is a rectangle per plane, and its rectangles many): the search stays short.
+  // The order of copies does not matter (their sources are interior points).
+  std::array<std::vector<typename GhostPlan::CopyRun>, 3> open_rects;
+  constexpr std::ptrdiff_t kRectsTried = 4;
+  auto append_run = [&](std::size_t l, const typename GhostPlan::CopyRun& run) {
+    const auto tried = std::min<std::ptrdiff_t>(kRectsTried, std::ssize(open_rects[l]));
+    for (auto rect = open_rects[l].rbegin(); rect != open_rects[l].rbegin() + tried; ++rect) {
+      if (rect->length != run.length || rect->src_slot != run.src_slot) continue;
+      if (rect->rows == 1 && run.dest - rect->dest >= run.length) {
+        rect->dest_stride = run.dest - rect->dest;
+        rect->src_stride = run.src - rect->src;
+        rect->rows = 2;
+        return;
+      }
+      if (rect->rows > 1 && run.dest == rect->dest + rect->rows * rect->dest_stride &&
+          run.src == rect->src + rect->rows * rect->src_stride) {
+        ++rect->rows;
+        return;
+      }
+    }
+    open_rects[l].push_back(run);
+  };
   auto close_runs = [&] {
-    for (std::size_t l = 0; l < open_run.size(); ++l)
-      if (run_open[l]) plan.copy_runs[l].push_back(open_run[l]);
+    for (std::size_t l = 0; l < open_run.size(); ++l) {
+      if (run_open[l]) append_run(l, open_run[l]);
+      plan.copy_runs[l].insert(plan.copy_runs[l].end(), open_rects[l].begin(), open_rects[l].end());
+      open_rects[l].clear();
+    }
     run_open.fill(false);
   };
   // Row k into list `list`, and (a row of a block built afresh) into kRebuiltRows too: sorted
@@ -1097,7 +1132,7 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan, const GhostPlan* previ
         ++run.length;
         return;
       }
-      if (run_open[l]) plan.copy_runs[l].push_back(run);
+      if (run_open[l]) append_run(l, run);
       run = {dest, src, 1, plan.local_src_slot[t]};
       run_open[l] = true;
     });
@@ -1262,12 +1297,28 @@ void sum_local_rows(const Plan& plan, const typename Plan::PackedRows& rows, std
 /// written 0 + u, what the weighted sum gives (-0 becomes +0).
 template <int kFields, typename Run>
 void copy_runs(std::span<const Run> runs, std::vector<double>* fields) {
-  for (const auto& run : runs)
+  // Rows of one or two values (the side faces' ghosts, injection from finer leaves) without
+  // an inner loop; the rectangle's length is one branch for all its rows and fields.
+  auto copy_rows = [&](const Run& run, auto copy_row) {
     for (std::size_t f = 0; f < kFields; ++f) {
       double* to = fields[f].data() + run.dest;
       const double* from = fields[f].data() + run.src;
-      for (std::int32_t k = 0; k < run.length; ++k) to[k] = 0.0 + from[k];
+      for (std::int32_t r = 0; r < run.rows; ++r, to += run.dest_stride, from += run.src_stride) copy_row(to, from);
     }
+  };
+  for (const auto& run : runs) {
+    if (run.length == 2)
+      copy_rows(run, [](double* to, const double* from) {
+        to[0] = 0.0 + from[0];
+        to[1] = 0.0 + from[1];
+      });
+    else if (run.length == 1)
+      copy_rows(run, [](double* to, const double* from) { to[0] = 0.0 + from[0]; });
+    else
+      copy_rows(run, [length = run.length](double* to, const double* from) {
+        for (std::int32_t k = 0; k < length; ++k) to[k] = 0.0 + from[k];
+      });
+  }
 }
 
 /// Copy runs, then local sums (packed rows first .. last), for kFields consecutive field
@@ -1453,6 +1504,7 @@ GhostPlanStats AdaptiveGrid<Dim>::ghost_plan_stats() const {
     else stats.weighted_terms += terms;
     stats.longest_row = std::max(stats.longest_row, terms);
   }
+  stats.copy_rectangles = static_cast<std::int64_t>(plan.copy_runs[0].size() + plan.copy_runs[1].size());
   return stats;
 }
 

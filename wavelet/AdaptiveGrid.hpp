@@ -140,6 +140,9 @@ struct GhostPlanStats {
   std::int64_t copies = 0;          ///< rows that copy one value
   std::int64_t weighted_terms = 0;  ///< terms of the other rows (local and received)
   int longest_row = 0;              ///< most terms in one row
+  /// Rectangles the copies are grouped into (a fill's copy loop runs once per rectangle), over
+  /// both reach groups; a copy with a remote source is a row of its own instead.
+  std::int64_t copy_rectangles = 0;
 };
 
 template <int Dim>

@@ -246,6 +246,30 @@ TEST(AdaptiveGrid, GhostsExactForPolynomials3D) {
   ghosts_exact_for_polynomials<3>(6, 8);
 }
 
+// A fill copies same-level ghosts by rectangles (GhostPlan::CopyRun): on a uniform periodic grid
+// of 4 x 4 blocks each block reads its eight neighbours, one rectangle each, although in array
+// order the rows of its left and right faces alternate. Across ranks the copies are remote rows
+// instead, so the count is exact on one rank and at most that on more.
+TEST(AdaptiveGrid, SameLevelCopiesFormOneRectanglePerNeighbour) {
+  auto c = unit_box<2>(true, 1, 1);
+  c.block_size = 8;
+  gw::AdaptiveGrid<2> grid(c);
+  ASSERT_EQ(grid.global_blocks(), 16u);
+  const auto stats = grid.ghost_plan_stats();
+  const auto ghosts = static_cast<std::int64_t>(grid.local_blocks() * (14 * 14 - 8 * 8));
+  EXPECT_EQ(stats.rows, ghosts);
+  const auto rectangles = global_sum(stats.copy_rectangles);
+  int ranks = 1;
+  MPI_Comm_size(MPI_COMM_WORLD, &ranks);
+  if (ranks == 1) {
+    EXPECT_EQ(stats.copies, ghosts);
+    EXPECT_EQ(rectangles, 8 * 16);
+  } else {
+    EXPECT_LE(rectangles, 8 * 16);
+    EXPECT_GT(rectangles, 0);
+  }
+}
+
 // Periodic images and smooth non-polynomial data: copies and injections stay exact, predicted
 // ghosts converge at the interpolation order (4 and 6) when every level moves up by one.
 template <int Dim>
