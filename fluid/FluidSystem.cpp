@@ -1211,7 +1211,7 @@ void FluidModel<Dim>::measure_forces(double t) {
         const double lo = x0[au] - centre[k][au], hi = lo + (bs - 1) * h[au];
         overlaps = overlaps && hi >= -outer && lo <= outer;
       }
-      if (overlaps) shells.push_back(k);
+      if (overlaps && penalization_.control_volume_check) shells.push_back(k);
     }
     if (masked_[s].empty() && shells.empty()) continue;
     // The box weight is separable, W = prod_a S(d_a): its factors and their slopes are tabulated
@@ -1354,7 +1354,7 @@ void FluidModel<Dim>::measure_forces(double t) {
       sample.force[a] = sum[a];
       sample.torque[a] = sum[3 + a];
       const double rate = has_previous ? (sum[9 + a] - cv_momentum_[k][a]) / (t - cv_time_) : 0.0;
-      sample.force_cv[a] = sum[6 + a] - rate;
+      sample.force_cv[a] = penalization_.control_volume_check ? sum[6 + a] - rate : std::nan("");
       cv_momentum_[k][a] = sum[9 + a];
     }
     sample.mass_inside = sum[12];
@@ -1474,7 +1474,7 @@ void FluidModel<Dim>::add_force_metrics(io::Json& out) const {
     out.set("Cd" + suffix, along(history.back().force, c.drag_direction) / c.dynamic_force);
     if (n == 0) continue;
     out.set("Cd_mean" + suffix, drag_sum / n);
-    out.set("Cd_control_volume" + suffix, cv_sum / n);
+    if (penalization_.control_volume_check) out.set("Cd_control_volume" + suffix, cv_sum / n);
     const LiftStatistics lift_stats = lift_statistics(times, lift, 1e-3);
     out.set("Cl_amplitude" + suffix, lift_stats.amplitude);
     out.set("Cl_half_range" + suffix, lift_stats.half_range);
@@ -1670,9 +1670,10 @@ std::string FluidModel<Dim>::describe() const {
                                : std::string("uniform"),
                      grid_->global_blocks()) +
          (penalized() ? fmt::format("\n  {} bod{} by characteristic Brinkman penalization (eta_b {:.3g}, eta_c {:.3g}, "
-                                    "nu_n {:.3g}, mask half-width {:.3g} = {} h)",
+                                    "nu_n {:.3g}, mask half-width {:.3g} = {} h){}",
                                     penalization_.bodies.size(), penalization_.bodies.size() == 1 ? "y" : "ies", eta_b_,
-                                    eta_c_, penalization_.nu_n, mask_width_, penalization_.smoothing)
+                                    eta_c_, penalization_.nu_n, mask_width_, penalization_.smoothing,
+                                    penalization_.control_volume_check ? "" : ", no control-volume cross-check")
                       : std::string());
 }
 

@@ -164,6 +164,11 @@ void declare_penalization(SceneSchema& schema) {
   s.flag("refine_control_volume", true,
          "keep each body's control-volume box (and its weight's ramp) at the finest level, so the momentum-balance "
          "cross-check does not carry the adaptive grid's threshold error (false: only the interface band is)");
+  s.flag("control_volume_check", true,
+         "measure each body's force a second time, by the momentum balance over a box around it (Cd_control_volume, "
+         "forces.csv's Fx_cv..): an independent check of the volume integral, which needs the stresses over the "
+         "box's ramp, about half the force measurement's time around moving bodies; false leaves it out (those "
+         "columns then read nan) and the boxes unrefined");
   s.real("start_ramp", 0.0,
          "soft start: the no-slip target velocity goes smoothly from the free stream to the body velocity over "
          "this time (0: impulsive start)")
@@ -205,7 +210,8 @@ PenalizationSettings read_penalization(const Scene& scene, int dim) {
     out.average_after = s.real("average_after");
     out.reference_speed = s.real("reference_speed");
     out.start_ramp = s.real("start_ramp");
-    out.refine_control_volume = s.flag("refine_control_volume");
+    out.control_volume_check = s.flag("control_volume_check");
+    out.refine_control_volume = out.control_volume_check && s.flag("refine_control_volume");
     if (entries.empty()) s.fail("eta_b", "[penalization] without any [[body]] entry");
   }
   for (const auto& e : entries) {

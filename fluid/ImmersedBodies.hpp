@@ -93,6 +93,8 @@ struct PenalizationSettings {
   double reference_speed = 0;  ///< U of the coefficients; 0: the free stream or the first body's speed
   double start_ramp = 0;       ///< time over which the no-slip target goes from free stream to body velocity
   bool refine_control_volume = true;  ///< control-volume boxes forced to the finest level
+  /// Each body's force measured a second way, by the momentum balance over its box (force_cv).
+  bool control_volume_check = true;
   bool empty() const { return bodies.empty(); }
 };
 

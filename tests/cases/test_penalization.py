@@ -82,6 +82,22 @@ def penalized_cylinder_forces():
         expect(key in m, f"summary.json reports {key} = {m.get(key)}")
     with open(os.path.join(out, "log.txt")) as f:
         expect("characteristic Brinkman penalization" in f.read(), "the log says how the body is imposed")
+    f_cv = read_forces(out)["Fx_cv"][1:]
+    expect(np.all(np.isfinite(f_cv)) and np.any(f_cv != 0), "the control-volume drag is measured")
+    # Without the control-volume cross-check: the same drag to the last digit (the volume
+    # integral does not depend on it), the cross-check's columns nan, its metric absent.
+    s_off, out_off, _ = run("cylinder_re40.toml", *SMALL_CYLINDER, "penalization.control_volume_check=false",
+                            out=scratch("cylinder_no_cv"))
+    with open(os.path.join(out, "forces.csv")) as a, open(os.path.join(out_off, "forces.csv")) as b:
+        columns = lambda rows, keys: [[r[k] for k in keys] for r in rows]
+        on, off = list(csv.DictReader(a)), list(csv.DictReader(b))
+    volume = ["t", "Fx", "Fy", "Tz", "mass_inside"]
+    expect(columns(on, volume) == columns(off, volume), f"the volume-integral forces are the same text ({len(off)} rows)")
+    expect(all(r["Fx_cv"] == "nan" for r in off), "without the cross-check forces.csv's Fx_cv reads nan")
+    expect("Cd_control_volume" not in s_off["metrics"] and s_off["metrics"]["Cd_mean"] == m["Cd_mean"],
+           f"Cd_mean {s_off['metrics']['Cd_mean']} the same, Cd_control_volume left out")
+    with open(os.path.join(out_off, "log.txt")) as f:
+        expect("no control-volume cross-check" in f.read(), "the log says the cross-check is off")
 
 
 def penalized_restart_is_exact():
