@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <numeric>
 #include <stdexcept>
 #include <string>
 #include <optional>
@@ -111,8 +112,10 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   std::vector<char> block_has_remote, block_rebuilt;  // ... and whether its rows were built afresh
   std::vector<std::uint64_t> block_curve;
   std::vector<std::int32_t> block_dependencies;
-  std::vector<std::int32_t> local_src_slot;  // kScratchSlot for a scratch point
-  static constexpr std::int32_t kScratchSlot = -1;
+  // Per local term, the page of the block it reads (the plan addresses points by page, which a
+  // block keeps while it stays, so a reused row needs no renumbering), or kScratchPage.
+  std::vector<std::int32_t> local_src_page;
+  static constexpr std::int32_t kScratchPage = -1;
   /// Whether row k copies one value: one local term of weight 1, nothing remote.
   bool is_copy(std::size_t k) const {
     return remote_begin[k + 1] == remote_begin[k] && local_begin[k + 1] - local_begin[k] == 1 &&
@@ -130,7 +133,7 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   struct CopyRun {
     std::int32_t dest, src;  // field array indices of the first row (32 bits, as local_src)
     std::int32_t length;     // values per row
-    std::int32_t src_slot;   // the local block it reads (a rectangle reads one block)
+    std::int32_t src_page;   // the page of the local block it reads (a rectangle reads one block)
     std::int32_t rows = 1;
     std::int32_t dest_stride = 0, src_stride = 0;  // from one row to the next
   };
@@ -179,7 +182,7 @@ struct AdaptiveGrid<Dim>::GhostPlan {
     auto empty = [](auto&... lists) { (lists.clear(), ...); };
     empty(dest, local_begin, remote_begin, local_src, local_weight, remote_src, remote_w, remote_lead, row_stage, kind,
           block_scratch_begin, block_row_begin, block_dependency_begin, block_has_remote, block_rebuilt, block_curve,
-          block_dependencies, local_src_slot, recv_rank, recv_first, recv_count, send_rank, send_first, send_count,
+          block_dependencies, local_src_page, recv_rank, recv_first, recv_count, send_rank, send_first, send_count,
           send_src, send_buffer, recv_buffer, requests);
     scratch_start = 0;
     for (std::size_t list = 0; list < copy_runs.size(); ++list) {
@@ -251,8 +254,8 @@ template <int Dim>
 AdaptiveGrid<Dim>::AdaptiveGrid(const AdaptiveGrid& o)
     : config_(o.config_), comm_(o.comm_), rank_(o.rank_), ranks_(o.ranks_), forest_(o.forest_),
       offsets_(o.offsets_), first_leaf_(o.first_leaf_), local_keys_(o.local_keys_), layout_(o.layout_),
-      interior_points_(o.interior_points_), block_volume_(o.block_volume_), data_(o.data_),
-      plan_(std::make_unique<GhostPlan>(*o.plan_)), layout_serial_(o.layout_serial_), stencil_reach_(o.stencil_reach_) {
+      interior_points_(o.interior_points_), block_volume_(o.block_volume_), data_(o.data_), page_of_(o.page_of_),
+      free_pages_(o.free_pages_), pages_(o.pages_), plan_(std::make_unique<GhostPlan>(*o.plan_)), layout_serial_(o.layout_serial_), stencil_reach_(o.stencil_reach_) {
   // The plan is copied, not rebuilt: the solver copies its grid every step to keep the last good
   // state, and rebuilding the plan there cost 7% of a 2D Navier-Stokes run in perf (11% of wall time).
 }
@@ -278,6 +281,9 @@ AdaptiveGrid<Dim>& AdaptiveGrid<Dim>::operator=(const AdaptiveGrid& o) {
   layout_ = o.layout_;
   interior_points_ = o.interior_points_;
   block_volume_ = o.block_volume_;
+  page_of_ = o.page_of_;
+  free_pages_ = o.free_pages_;
+  pages_ = o.pages_;
   if (plan_) *plan_ = *o.plan_;
   else plan_ = std::make_unique<GhostPlan>(*o.plan_);
   operators_.clear();  // built again on demand, for this grid's configuration
@@ -308,7 +314,11 @@ void AdaptiveGrid<Dim>::refresh_partition() {
 
 template <int Dim>
 void AdaptiveGrid<Dim>::allocate_local() {
-  data_.assign(config_.fields.size(), std::vector<double>(local_keys_.size() * block_volume_, 0.0));
+  pages_ = local_keys_.size();
+  page_of_.resize(pages_);
+  std::iota(page_of_.begin(), page_of_.end(), 0);
+  free_pages_.clear();
+  data_.assign(config_.fields.size(), std::vector<double>(pages_ * block_volume_, 0.0));
 }
 
 template <int Dim>
@@ -372,12 +382,12 @@ int AdaptiveGrid<Dim>::field_index(const std::string& name) const {
 
 template <int Dim>
 std::span<double> AdaptiveGrid<Dim>::block(int field, std::size_t slot) {
-  return {data_[static_cast<std::size_t>(field)].data() + slot * block_volume_, block_volume_};
+  return {data_[static_cast<std::size_t>(field)].data() + block_base(slot), block_volume_};
 }
 
 template <int Dim>
 std::span<const double> AdaptiveGrid<Dim>::block(int field, std::size_t slot) const {
-  return {data_[static_cast<std::size_t>(field)].data() + slot * block_volume_, block_volume_};
+  return {data_[static_cast<std::size_t>(field)].data() + block_base(slot), block_volume_};
 }
 
 template <int Dim>
@@ -562,7 +572,7 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
   plan.block_row_begin.push_back(0);
   plan.block_dependency_begin.push_back(0);
   plan.block_scratch_begin.push_back(0);
-  plan.scratch_start = static_cast<std::int64_t>(local_keys_.size() * block_volume_);
+  plan.scratch_start = static_cast<std::int64_t>(pages_ * block_volume_);
   // The plan numbers points in 32 bits (GhostPlan::local_src).
   auto refuse_beyond_32_bits = [](std::int64_t points) {
     if (points > std::numeric_limits<std::int32_t>::max())
@@ -631,13 +641,12 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
     }
     return o;
   };
-  const auto volume = static_cast<std::int64_t>(block_volume_);
   if (previous) {  // about the same size again: no regrowth
     plan.dest.reserve(previous->dest.size());
     plan.local_begin.reserve(previous->local_begin.size());
     plan.remote_begin.reserve(previous->remote_begin.size());
     plan.local_src.reserve(previous->local_src.size());
-    plan.local_src_slot.reserve(previous->local_src_slot.size());
+    plan.local_src_page.reserve(previous->local_src_page.size());
     plan.local_weight.reserve(previous->local_weight.size());
     plan.weights = previous->weights;  // the rows copied from it keep their weights' indices
     plan.block_dependencies.reserve(previous->block_dependencies.size());
@@ -666,8 +675,8 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
           q[static_cast<std::size_t>(a)] = static_cast<int>(rest % ubs) + g;
           rest /= ubs;
         }
-        plan.local_src.push_back(static_cast<std::int32_t>((leaf - first_leaf_) * block_volume_ + static_cast<std::size_t>(shape.index(q))));
-        plan.local_src_slot.push_back(static_cast<std::int32_t>(leaf - first_leaf_));
+        plan.local_src.push_back(static_cast<std::int32_t>(block_base(leaf - first_leaf_) + static_cast<std::size_t>(shape.index(q))));
+        plan.local_src_page.push_back(page_of_[leaf - first_leaf_]);
         plan.local_weight.push_back(plan.weights.index_of(w));
       } else {
         auto& list = wanted[static_cast<std::size_t>(who)];
@@ -716,8 +725,8 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
         own = resolver.last().level < level;
       }
       if (own) {
-        plan.local_src.push_back(static_cast<std::int32_t>(slot * block_volume_ + static_cast<std::size_t>(shape.index(at))));
-        plan.local_src_slot.push_back(static_cast<std::int32_t>(slot));
+        plan.local_src.push_back(static_cast<std::int32_t>(block_base(slot) + static_cast<std::size_t>(shape.index(at))));
+        plan.local_src_page.push_back(page_of_[slot]);
       } else {
         const std::size_t cell = scratch_cell(at);
         if (scratch_at[cell] < 0) {
@@ -726,7 +735,7 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
         }
         const auto q = static_cast<std::size_t>(scratch_at[cell]);
         plan.local_src.push_back(static_cast<std::int32_t>(plan.scratch_start + scratch_points + static_cast<std::int64_t>(q)));
-        plan.local_src_slot.push_back(GhostPlan::kScratchSlot);
+        plan.local_src_page.push_back(GhostPlan::kScratchPage);
       }
       plan.local_weight.push_back(plan.weights.index_of(line.weight[mu]));
     }
@@ -738,42 +747,37 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
     const Key key = local_keys_[s];
     plan.block_curve.push_back(forest_.leaf_curve_index(first_leaf_ + s));
     if (const auto o = reusable(s)) {
-      // Bulk copies: rows [k0, k1) with terms [t0, t1) of the previous plan.
+      // Bulk copies: rows [k0, k1) with terms [t0, t1) of the previous plan. The block and every
+      // leaf its rows read kept their pages, so the rows address the same points: only their
+      // place in the lists changes, and where the block's scratch points are.
       const GhostPlan& old = *previous;
-      const auto k0 = static_cast<std::size_t>(old.block_row_begin[*o]);
-      const auto k1 = static_cast<std::size_t>(old.block_row_begin[*o + 1]);
-      const auto t0 = static_cast<std::size_t>(old.local_begin[k0]);
-      const auto t1 = static_cast<std::size_t>(old.local_begin[k1]);
-      const auto shift = (static_cast<std::int64_t>(s) - static_cast<std::int64_t>(*o)) * volume;
+      const auto k0 = static_cast<std::ptrdiff_t>(old.block_row_begin[*o]);
+      const auto k1 = static_cast<std::ptrdiff_t>(old.block_row_begin[*o + 1]);
+      const auto t0 = static_cast<std::ptrdiff_t>(old.local_begin[static_cast<std::size_t>(k0)]);
+      const auto t1 = static_cast<std::ptrdiff_t>(old.local_begin[static_cast<std::size_t>(k1)]);
       const std::size_t rows = plan.dest.size(), first_term = plan.local_src.size();
       // Its scratch points keep their order, moved to where this plan's scratch for it starts.
-      const std::int64_t scratch_shift =
-          plan.scratch_start + scratch_points - (old.scratch_start + old.block_scratch_begin[*o]);
-      plan.dest.resize(rows + (k1 - k0));
+      const auto scratch_shift = static_cast<std::int32_t>(plan.scratch_start + scratch_points -
+                                                           (old.scratch_start + old.block_scratch_begin[*o]));
+      const auto old_scratch = static_cast<std::int32_t>(old.scratch_start);
+      plan.dest.insert(plan.dest.end(), old.dest.begin() + k0, old.dest.begin() + k1);
       plan.remote_lead.resize(plan.dest.size(), 0);  // a reused block has no remote terms
-      plan.row_stage.insert(plan.row_stage.end(), old.row_stage.begin() + static_cast<std::ptrdiff_t>(k0),
-                            old.row_stage.begin() + static_cast<std::ptrdiff_t>(k1));
-      for (std::size_t k = k0; k < k1; ++k)
-        plan.dest[rows + k - k0] = static_cast<std::int32_t>(old.dest[k] + (old.dest[k] >= old.scratch_start ? scratch_shift : shift));
-      const auto term_shift = static_cast<std::int32_t>(first_term) - static_cast<std::int32_t>(t0);
-      plan.local_begin.resize(rows + 1 + (k1 - k0));
-      for (std::size_t k = k0 + 1; k <= k1; ++k) plan.local_begin[rows + k - k0] = old.local_begin[k] + term_shift;
-      plan.remote_begin.resize(plan.remote_begin.size() + (k1 - k0), static_cast<std::int32_t>(remote_pending.size()));
-      plan.local_src.resize(first_term + (t1 - t0));
-      plan.local_src_slot.resize(first_term + (t1 - t0));
-      plan.local_weight.insert(plan.local_weight.end(), old.local_weight.begin() + static_cast<std::ptrdiff_t>(t0),
-                               old.local_weight.begin() + static_cast<std::ptrdiff_t>(t1));
-      for (std::size_t t = t0; t < t1; ++t) {
-        const std::int32_t from = old.local_src_slot[t];
-        if (from == GhostPlan::kScratchSlot) {
-          plan.local_src[first_term + t - t0] = static_cast<std::int32_t>(old.local_src[t] + scratch_shift);
-          plan.local_src_slot[first_term + t - t0] = from;
-          continue;
-        }
-        const std::int64_t to = slot_now[static_cast<std::size_t>(from)];
-        plan.local_src[first_term + t - t0] = static_cast<std::int32_t>(old.local_src[t] + (to - from) * volume);
-        plan.local_src_slot[first_term + t - t0] = static_cast<std::int32_t>(to);
+      plan.row_stage.insert(plan.row_stage.end(), old.row_stage.begin() + k0, old.row_stage.begin() + k1);
+      plan.local_src.insert(plan.local_src.end(), old.local_src.begin() + t0, old.local_src.begin() + t1);
+      plan.local_src_page.insert(plan.local_src_page.end(), old.local_src_page.begin() + t0, old.local_src_page.begin() + t1);
+      plan.local_weight.insert(plan.local_weight.end(), old.local_weight.begin() + t0, old.local_weight.begin() + t1);
+      if (scratch_shift != 0) {
+        for (std::size_t k = rows; k < plan.dest.size(); ++k)
+          plan.dest[k] += plan.dest[k] >= old_scratch ? scratch_shift : 0;
+        for (std::size_t t = first_term; t < plan.local_src.size(); ++t)
+          plan.local_src[t] += plan.local_src_page[t] == GhostPlan::kScratchPage ? scratch_shift : 0;
       }
+      const auto term_shift = static_cast<std::int32_t>(first_term) - static_cast<std::int32_t>(t0);
+      plan.local_begin.resize(rows + 1 + static_cast<std::size_t>(k1 - k0));
+      std::transform(old.local_begin.begin() + k0 + 1, old.local_begin.begin() + k1 + 1, plan.local_begin.begin() + static_cast<std::ptrdiff_t>(rows) + 1,
+                     [term_shift](std::int32_t begin) { return begin + term_shift; });
+      plan.remote_begin.resize(plan.remote_begin.size() + static_cast<std::size_t>(k1 - k0),
+                               static_cast<std::int32_t>(remote_pending.size()));
       std::copy_n(old.kind.begin() + static_cast<std::ptrdiff_t>(*o * block_volume_), block_volume_,
                   plan.kind.begin() + static_cast<std::ptrdiff_t>(s * block_volume_));
       for (auto d = old.block_dependency_begin[*o]; d < old.block_dependency_begin[*o + 1]; ++d)
@@ -848,8 +852,8 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
         }
         idx[au] = v;
       }
-      const std::size_t at = s * block_volume_ + p;
-      plan.dest[row] = static_cast<std::int32_t>(at);
+      const std::size_t at = s * block_volume_ + p;  // in plan.kind, by slot
+      plan.dest[row] = static_cast<std::int32_t>(block_base(s) + p);
       if (outside) {
         // Never read: derivatives use one-sided rows and prediction one-sided stencils there.
         plan.kind[at] = static_cast<std::uint8_t>(GhostKind::kOutsideDomain);
@@ -869,8 +873,8 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
         // resolve() would give, its point injected (weight 1), without the term list.
         auto q = resolver.injected(key.level, idx);
         for (int& qa : q) qa += g;
-        plan.local_src.push_back(static_cast<std::int32_t>((source - first_leaf_) * block_volume_ + static_cast<std::size_t>(shape.index(q))));
-        plan.local_src_slot.push_back(static_cast<std::int32_t>(source - first_leaf_));
+        plan.local_src.push_back(static_cast<std::int32_t>(block_base(source - first_leaf_) + static_cast<std::size_t>(shape.index(q))));
+        plan.local_src_page.push_back(page_of_[source - first_leaf_]);
         plan.local_weight.push_back(WeightTable::kOne);
         end_row();
         return;
@@ -912,12 +916,12 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
           q[0] = x0;
           for (std::size_t a = 0, rest = region; a < static_cast<std::size_t>(Dim); ++a, rest /= 3)
             q[a] -= (static_cast<int>(rest % 3) - 1) * bs;
-          const auto first_src = static_cast<std::int32_t>(from * static_cast<std::int64_t>(block_volume_) + shape.index(q));
-          const auto first_dest = static_cast<std::int32_t>(s * block_volume_ + line) + x0;
+          const auto first_src = static_cast<std::int32_t>(static_cast<std::int64_t>(block_base(static_cast<std::size_t>(from))) + shape.index(q));
+          const auto first_dest = static_cast<std::int32_t>(block_base(s) + line) + x0;
           const auto n = static_cast<std::size_t>(x1 - x0);
           const std::size_t t0 = plan.local_src.size();
           plan.local_src.resize(t0 + n);
-          plan.local_src_slot.resize(t0 + n, static_cast<std::int32_t>(from));
+          plan.local_src_page.resize(t0 + n, page_of_[static_cast<std::size_t>(from)]);
           plan.local_weight.resize(t0 + n, WeightTable::kOne);
           const auto pending = static_cast<std::int32_t>(remote_pending.size());
           for (std::size_t k = 0; k < n; ++k) {  // kind: kSameLevel, as plan.kind starts
@@ -1008,7 +1012,7 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
       q[static_cast<std::size_t>(a)] = static_cast<int>(rest % bs) + g;
       rest /= bs;
     }
-    plan.send_src.push_back(static_cast<std::int64_t>((leaf - first_leaf_) * block_volume_) + shape.index(q));
+    plan.send_src.push_back(static_cast<std::int64_t>(block_base(leaf - first_leaf_)) + shape.index(q));
   }
   for (std::size_t r = 0; r < P; ++r) {
     if (recv_counts[r] > 0) {
@@ -1029,15 +1033,14 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
   plan.send_buffer.assign(plan.send_src.size() * static_cast<std::size_t>(F), 0.0);
   plan.recv_buffer.assign(static_cast<std::size_t>(recv_first[P]) * static_cast<std::size_t>(F), 0.0);
   plan.requests.resize(plan.recv_rank.size() + plan.send_rank.size());
-  group_ghost_rows(plan, previous.get(), slot_now);
+  group_ghost_rows(plan, previous.get());
   spare_plan_ = std::move(previous);
   // The scratch points sit after the blocks in every field array.
   for (auto& field : data_) field.resize(static_cast<std::size_t>(plan.scratch_start + scratch_points), 0.0);
 }
 
 template <int Dim>
-void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan, const GhostPlan* previous,
-                                         std::span<const std::int64_t> slot_now) const {
+void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan, const GhostPlan* previous) const {
   for (std::size_t list = 0; list < plan.copy_runs.size(); ++list) {
     plan.copy_runs[list].clear();
     plan.sum_rows[list].clear();
@@ -1079,7 +1082,7 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan, const GhostPlan* previ
   auto append_run = [&](std::size_t l, const typename GhostPlan::CopyRun& run) {
     const auto tried = std::min<std::ptrdiff_t>(kRectsTried, std::ssize(open_rects[l]));
     for (auto rect = open_rects[l].rbegin(); rect != open_rects[l].rbegin() + tried; ++rect) {
-      if (rect->length != run.length || rect->src_slot != run.src_slot) continue;
+      if (rect->length != run.length || rect->src_page != run.src_page) continue;
       if (rect->rows == 1 && run.dest - rect->dest >= run.length) {
         rect->dest_stride = run.dest - rect->dest;
         rect->src_stride = run.src - rect->src;
@@ -1133,7 +1136,7 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan, const GhostPlan* previ
         return;
       }
       if (run_open[l]) append_run(l, run);
-      run = {dest, src, 1, plan.local_src_slot[t]};
+      run = {dest, src, 1, plan.local_src_page[t]};
       run_open[l] = true;
     });
   };
@@ -1148,25 +1151,21 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan, const GhostPlan* previ
     }
   };
   // A reused block's entries in lists 0 and 1, from the old plan (slot o): rows renumbered by
-  // the shift of its first row, runs by the shift of their blocks (as build_ghost_plan moved
-  // their rows). It has no remote rows and none in list 2.
+  // the shift of its first row; its copies as they were (they read and write block points,
+  // addressed by pages, which the block and its sources kept). It has no remote rows and none in
+  // list 2.
   auto take_old_entries = [&](std::size_t s, std::size_t o) {
     const GhostPlan& old = *previous;
     const std::int32_t row_shift = plan.block_row_begin[s] - old.block_row_begin[o];
-    const auto volume = static_cast<std::int64_t>(block_volume_);
-    const std::int64_t dest_shift = (static_cast<std::int64_t>(s) - static_cast<std::int64_t>(o)) * volume;
     for (std::size_t list = 0; list < plan.block_group_begin.size(); ++list) {
       const auto& begin = old.block_group_begin[list];
-      for (auto r = begin[0][o]; r < begin[0][o + 1]; ++r) {
-        auto run = old.copy_runs[list][static_cast<std::size_t>(r)];
-        const std::int64_t to = slot_now[static_cast<std::size_t>(run.src_slot)];
-        run.dest = static_cast<std::int32_t>(run.dest + dest_shift);
-        run.src = static_cast<std::int32_t>(run.src + (to - run.src_slot) * volume);
-        run.src_slot = static_cast<std::int32_t>(to);
-        plan.copy_runs[list].push_back(run);
-      }
+      const auto& runs = old.copy_runs[list];
+      plan.copy_runs[list].insert(plan.copy_runs[list].end(), runs.begin() + begin[0][o], runs.begin() + begin[0][o + 1]);
       auto rows = [&](const std::vector<std::int32_t>& from, std::size_t kind, std::vector<std::int32_t>& to) {
-        for (auto r = begin[kind][o]; r < begin[kind][o + 1]; ++r) to.push_back(from[static_cast<std::size_t>(r)] + row_shift);
+        const std::size_t at = to.size();
+        to.resize(at + static_cast<std::size_t>(begin[kind][o + 1] - begin[kind][o]));
+        std::transform(from.begin() + begin[kind][o], from.begin() + begin[kind][o + 1], to.begin() + static_cast<std::ptrdiff_t>(at),
+                       [row_shift](std::int32_t row) { return row + row_shift; });
       };
       rows(old.sum_rows[list], 1, plan.sum_rows[list]);
       rows(old.derived_rows[list][0], 3, plan.derived_rows[list][0]);
@@ -1181,7 +1180,7 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan, const GhostPlan* previ
       take_old_entries(s, static_cast<std::size_t>(plan.reused_from[s]));
       continue;
     }
-    const auto base = static_cast<std::int64_t>(s * block_volume_);
+    const auto base = static_cast<std::int64_t>(block_base(s));
     const bool rebuilt = plan.block_rebuilt[s] != 0;
     const auto first_row = static_cast<std::size_t>(plan.block_row_begin[s]);
     const auto end_row = static_cast<std::size_t>(plan.block_row_begin[s + 1]);
@@ -1191,7 +1190,7 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan, const GhostPlan* previ
       if (plan.row_stage[k] == 0) continue;
       const std::uint8_t group = group_of[static_cast<std::size_t>(plan.dest[k] - base)];
       for (auto t = static_cast<std::size_t>(plan.local_begin[k]); t < static_cast<std::size_t>(plan.local_begin[k + 1]); ++t)
-        if (plan.local_src_slot[t] == GhostPlan::kScratchSlot) {
+        if (plan.local_src_page[t] == GhostPlan::kScratchPage) {
           auto& to = scratch_group[static_cast<std::size_t>(plan.local_src[t] - scratch_base)];
           to = std::min(to, group);
         }
@@ -1205,7 +1204,10 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan, const GhostPlan* previ
     close_runs();
   }
   mark_block_begin();
-  // The weighted rows copied out with their terms, in their lists' order (GhostPlan::PackedRows).
+  // The weighted rows copied out with their terms, in their lists' order (GhostPlan::PackedRows):
+  // a reused block's as one range of the old plan's (its rows address the same points but for
+  // its scratch points, which moved: no other block's rows read them), the others row by row.
+  const std::size_t blocks = plan.block_row_begin.size() - 1;
   for (std::size_t list = 0; list < plan.packed.size(); ++list)
     for (std::size_t kind = 0; kind < 3; ++kind) {
       auto& to = plan.packed[list][kind];
@@ -1213,13 +1215,48 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan, const GhostPlan* previ
       to.src.clear();
       to.weight.clear();
       to.begin.assign(1, 0);
-      for (const std::int32_t row : kind == 0 ? plan.sum_rows[list] : plan.derived_rows[list][kind - 1]) {
-        const auto k = static_cast<std::size_t>(row);
-        const auto t0 = static_cast<std::ptrdiff_t>(plan.local_begin[k]), t1 = static_cast<std::ptrdiff_t>(plan.local_begin[k + 1]);
-        to.dest.push_back(plan.dest[k]);
-        to.src.insert(to.src.end(), plan.local_src.begin() + t0, plan.local_src.begin() + t1);
-        to.weight.insert(to.weight.end(), plan.local_weight.begin() + t0, plan.local_weight.begin() + t1);
-        to.begin.push_back(static_cast<std::int32_t>(to.src.size()));
+      const auto& rows = kind == 0 ? plan.sum_rows[list] : plan.derived_rows[list][kind - 1];
+      auto append_rows = [&](std::size_t first, std::size_t last) {
+        for (std::size_t r = first; r < last; ++r) {
+          const auto k = static_cast<std::size_t>(rows[r]);
+          const auto t0 = static_cast<std::ptrdiff_t>(plan.local_begin[k]), t1 = static_cast<std::ptrdiff_t>(plan.local_begin[k + 1]);
+          to.dest.push_back(plan.dest[k]);
+          to.src.insert(to.src.end(), plan.local_src.begin() + t0, plan.local_src.begin() + t1);
+          to.weight.insert(to.weight.end(), plan.local_weight.begin() + t0, plan.local_weight.begin() + t1);
+          to.begin.push_back(static_cast<std::int32_t>(to.src.size()));
+        }
+      };
+      if (regroup_reused || list >= plan.block_group_begin.size()) {
+        append_rows(0, rows.size());
+        continue;
+      }
+      const auto& now = plan.block_group_begin[list][GhostPlan::kPackedGroup[kind]];
+      for (std::size_t b = 0; b < blocks; ++b) {
+        const std::int32_t o = plan.reused_from[b];
+        if (o < 0) {
+          append_rows(static_cast<std::size_t>(now[b]), static_cast<std::size_t>(now[b + 1]));
+          continue;
+        }
+        const auto ou = static_cast<std::size_t>(o);
+        const auto& from = previous->packed[list][kind];
+        const auto& before = previous->block_group_begin[list][GhostPlan::kPackedGroup[kind]];
+        const auto r0 = before[ou], r1 = before[ou + 1];
+        const auto t0 = from.begin[static_cast<std::size_t>(r0)], t1 = from.begin[static_cast<std::size_t>(r1)];
+        const std::size_t first_dest = to.dest.size(), first_src = to.src.size();
+        to.dest.insert(to.dest.end(), from.dest.begin() + r0, from.dest.begin() + r1);
+        to.src.insert(to.src.end(), from.src.begin() + t0, from.src.begin() + t1);
+        to.weight.insert(to.weight.end(), from.weight.begin() + t0, from.weight.begin() + t1);
+        const auto term_shift = static_cast<std::int32_t>(first_src) - t0;
+        const std::size_t first_begin = to.begin.size();
+        to.begin.resize(first_begin + static_cast<std::size_t>(r1 - r0));
+        std::transform(from.begin.begin() + r0 + 1, from.begin.begin() + r1 + 1, to.begin.begin() + static_cast<std::ptrdiff_t>(first_begin),
+                       [term_shift](std::int32_t begin) { return begin + term_shift; });
+        const auto scratch_shift = static_cast<std::int32_t>(plan.scratch_start + plan.block_scratch_begin[b] -
+                                                             (previous->scratch_start + previous->block_scratch_begin[ou]));
+        if (scratch_shift == 0) continue;
+        const auto old_scratch = static_cast<std::int32_t>(previous->scratch_start);  // block points lie below
+        for (std::size_t k = first_dest; k < to.dest.size(); ++k) to.dest[k] += to.dest[k] >= old_scratch ? scratch_shift : 0;
+        for (std::size_t t = first_src; t < to.src.size(); ++t) to.src[t] += to.src[t] >= old_scratch ? scratch_shift : 0;
       }
     }
   order_fill_while_writing(plan);
@@ -1263,7 +1300,7 @@ void AdaptiveGrid<Dim>::set_stencil_reach(int along_axis, int across_two_axes) {
   const std::array<int, 3> reach{along_axis, across_two_axes, 0};
   if (stencil_reach_ == reach) return;
   stencil_reach_ = reach;
-  if (plan_) group_ghost_rows(*plan_, nullptr, {});
+  if (plan_) group_ghost_rows(*plan_, nullptr);
 }
 
 namespace {
@@ -1485,9 +1522,13 @@ GhostKind AdaptiveGrid<Dim>::ghost_kind(std::size_t slot, std::ptrdiff_t array_i
 
 template <int Dim>
 std::array<std::int64_t, 4> AdaptiveGrid<Dim>::ghost_counts() const {
+  // The rows address points by page, plan.kind by slot.
   std::array<std::int64_t, 4> n{};
-  for (const auto d : plan_->dest)
-    if (d < plan_->scratch_start) ++n[plan_->kind[static_cast<std::size_t>(d)]];
+  const GhostPlan& plan = *plan_;
+  for (std::size_t s = 0; s < local_blocks(); ++s)
+    for (auto k = static_cast<std::size_t>(plan.block_row_begin[s]); k < static_cast<std::size_t>(plan.block_row_begin[s + 1]); ++k)
+      if (plan.dest[k] < plan.scratch_start)
+        ++n[plan.kind[s * block_volume_ + (static_cast<std::size_t>(plan.dest[k]) - block_base(s))]];
   return n;
 }
 
@@ -1578,7 +1619,7 @@ std::vector<double> AdaptiveGrid<Dim>::field_scales(const ThresholdConfig& th,
   maxima_ahead_.assign(ahead ? F * local_blocks() : 0, DetailMaxima{std::nan(""), 0, 0});
   for (std::size_t f = 0; f < F; ++f)
     for (std::size_t s = 0; s < local_blocks(); ++s) {
-      const double* u = data_[f].data() + s * block_volume_;
+      const double* u = data_[f].data() + block_base(s);
       if (!ranges || !range_bound_tried(s)) {  // the interiors only
         if (ahead && tested[s] && f < 32 && (fields_computed_[s] >> f & 1u)) {
           const DetailMaxima& found = maxima_ahead_[f * local_blocks() + s] = detail_maxima(u, block_detail_stencils(s));
@@ -1737,7 +1778,7 @@ bool AdaptiveGrid<Dim>::parent_significant(const Key& parent, const ThresholdCon
     if (!th.groups.empty() && th.groups[static_cast<std::size_t>(f)] < 0) continue;
     std::array<const double*, Key::kChildren> from{};
     for (std::size_t k = 0; k < from.size(); ++k)
-      from[k] = data_[static_cast<std::size_t>(f)].data() + child_slot[k] * block_volume_;
+      from[k] = data_[static_cast<std::size_t>(f)].data() + block_base(child_slot[k]);
     for (std::size_t p = 0; p < block_volume_; ++p) {
       const auto [child, at] = parent_sources_[p];
       parent_array_[p] = child < 0 ? 0.0 : from[static_cast<std::size_t>(child)][at];
@@ -1937,14 +1978,32 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_with_tags(std::span<const AdaptTag> tags) {
   if (counts.refined == 0 && counts.coarsened == 0) return counts;  // same blocks, same ghosts
   forest_.assign_leaves(std::move(next));
   const std::vector<Key> old_keys = local_keys_;
-  std::vector<std::vector<double>> old_data = std::move(data_);
+  const std::vector<std::int32_t> old_page = page_of_;
   refresh_partition();
-  // The storage the previous adaptation gave up, grown if need be: fresh arrays would be zeroed
-  // and paged in again every cycle. No stale value survives: every interior point is written
-  // below and every ghost point by fill_ghosts().
-  data_ = std::move(spare_data_);
-  data_.resize(old_data.size());
-  for (auto& field : data_) field.resize(local_keys_.size() * block_volume_);
+  // Pages (data_): a block that stays on this rank unchanged keeps its page, array and ghosts
+  // (most blocks: nothing of theirs is copied); a new one takes a page nobody held before this
+  // cycle, from the free list or added at the arrays' end (a quarter more at a time). The pages
+  // of the blocks that went are read below and given back at the end. Every interior point of a
+  // new block is written below, and its ghosts by the fill of the rebuilt rows.
+  page_of_.assign(local_keys_.size(), -1);
+  std::vector<char> kept(old_keys.size(), 0);
+  for (std::size_t s = 0; s < old_keys.size(); ++s)
+    if (const auto leaf = forest_.find(old_keys[s]); leaf && owner(*leaf) == rank_) {
+      page_of_[*leaf - first_leaf_] = old_page[s];
+      kept[s] = 1;
+    }
+  const auto needed = static_cast<std::size_t>(std::count(page_of_.begin(), page_of_.end(), -1));
+  if (needed > free_pages_.size()) {
+    const std::size_t grown = std::max(pages_ + needed - free_pages_.size(), pages_ + pages_ / 4);
+    for (std::size_t page = grown; page-- > pages_;) free_pages_.push_back(static_cast<std::int32_t>(page));
+    pages_ = grown;
+    for (auto& field : data_) field.resize(pages_ * block_volume_);  // the scratch points are placed again
+  }
+  for (auto& page : page_of_)
+    if (page < 0) {
+      page = free_pages_.back();
+      free_pages_.pop_back();
+    }
 
   // New blocks from the old ones on the old owner: unchanged (copy), refined (children by
   // prediction from the ghosted parent) or coarsened (each child injects its quarter of the
@@ -1962,7 +2021,7 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_with_tags(std::span<const AdaptTag> tags) {
   // rank are written at once, the others' sent in these blocks' messages.
   auto write_new_block = [&](std::size_t slot, int part, const double*& values) {
     for (int f = 0; f < F; ++f) {
-      double* u = data_[static_cast<std::size_t>(f)].data() + slot * block_volume_;
+      double* u = data_[static_cast<std::size_t>(f)].data() + block_base(slot);
       if (part < 0) {
         for_each_interior<Dim>(bs, g, shape, [&](std::size_t, const Index&, std::ptrdiff_t at) { u[at] = *values++; });
       } else {
@@ -1980,19 +2039,12 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_with_tags(std::span<const AdaptTag> tags) {
   for (std::size_t s = 0; s < old_keys.size(); ++s) {
     const Key key = old_keys[s];
     if (const auto leaf = forest_.find(key)) {
-      if (owner(*leaf) == rank_) {
-        // Unchanged and still here (most blocks): the whole array at once; fill_ghosts below
-        // writes every ghost point again.
-        for (std::size_t f = 0; f < static_cast<std::size_t>(F); ++f)
-          std::copy_n(old_data[f].begin() + static_cast<std::ptrdiff_t>(s * block_volume_), block_volume_,
-                      data_[f].begin() + static_cast<std::ptrdiff_t>((*leaf - first_leaf_) * block_volume_));
-        continue;
-      }
+      if (owner(*leaf) == rank_) continue;  // unchanged and still here, in its page
       auto& out = body[static_cast<std::size_t>(owner(*leaf))];
       head[static_cast<std::size_t>(owner(*leaf))].insert(head[static_cast<std::size_t>(owner(*leaf))].end(),
                                                           {static_cast<std::int64_t>(*leaf), -1});
       for (int f = 0; f < F; ++f) {
-        const double* u = old_data[static_cast<std::size_t>(f)].data() + s * block_volume_;
+        const double* u = data_[static_cast<std::size_t>(f)].data() + static_cast<std::size_t>(old_page[s]) * block_volume_;
         for_each_interior<Dim>(bs, g, shape, [&](std::size_t, const Index&, std::ptrdiff_t at) { out.push_back(u[at]); });
       }
     } else if (forest_.find(key.child(0))) {
@@ -2002,7 +2054,7 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_with_tags(std::span<const AdaptTag> tags) {
         child_stencils<Dim>(key, k, config_, g, st);
         values.resize(static_cast<std::size_t>(F) * interior_points_);
         for (int f = 0; f < F; ++f) {
-          const double* child = separable_tensor_sums<Dim>(old_data[static_cast<std::size_t>(f)].data() + s * block_volume_,
+          const double* child = separable_tensor_sums<Dim>(data_[static_cast<std::size_t>(f)].data() + static_cast<std::size_t>(old_page[s]) * block_volume_,
                                                            bs + 2 * g, st, bs, stages);
           std::copy_n(child, interior_points_, values.begin() + static_cast<std::ptrdiff_t>(static_cast<std::size_t>(f) * interior_points_));
         }
@@ -2020,7 +2072,7 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_with_tags(std::span<const AdaptTag> tags) {
       const auto who = static_cast<std::size_t>(owner(*parent));
       values.clear();
       for (int f = 0; f < F; ++f) {
-        const double* u = old_data[static_cast<std::size_t>(f)].data() + s * block_volume_;
+        const double* u = data_[static_cast<std::size_t>(f)].data() + static_cast<std::size_t>(old_page[s]) * block_volume_;
         // The parent's points in this child's region are the child's all-even points.
         for_each_interior<Dim>(bs / 2, 0, ArrayShape<Dim>{}, [&](std::size_t, const Index& i, std::ptrdiff_t) {
           Index q{};
@@ -2066,7 +2118,8 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_with_tags(std::span<const AdaptTag> tags) {
   // A block whose rows were copied from the old plan is unchanged, as is every leaf its rows
   // read: its ghosts, copied with its array, already hold what a fill would give them.
   fill_ghost_lists({kRebuiltRows});
-  spare_data_ = std::move(old_data);
+  for (std::size_t s = 0; s < old_keys.size(); ++s)
+    if (!kept[s]) free_pages_.push_back(old_page[s]);
   return counts;
 }
 
@@ -2174,7 +2227,7 @@ const typename AdaptiveGrid<Dim>::DetailStencils& AdaptiveGrid<Dim>::block_detai
 
 template <int Dim>
 std::pair<double, double> AdaptiveGrid<Dim>::block_bounds(int field, std::size_t slot) const {
-  return value_range(data_[static_cast<std::size_t>(field)].data() + slot * block_volume_, block_volume_);
+  return value_range(data_[static_cast<std::size_t>(field)].data() + block_base(slot), block_volume_);
 }
 
 template <int Dim>
@@ -2209,7 +2262,7 @@ std::size_t AdaptiveGrid<Dim>::memory_bytes() const {
   for (const GhostPlan* p : {plan_.get(), spare_plan_.get()})
     if (p) {
       bytes += p->dest.capacity() * 4 + p->local_src.capacity() * 4 + p->local_weight.capacity() * 2 +
-               p->local_src_slot.capacity() * 4 + p->remote_src.capacity() * 12 +
+               p->local_src_page.capacity() * 4 + p->remote_src.capacity() * 12 +
                p->kind.capacity() + (p->send_buffer.capacity() + p->recv_buffer.capacity()) * 8;
       for (const auto& list : p->packed)
         for (const auto& rows : list)

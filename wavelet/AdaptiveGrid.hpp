@@ -291,9 +291,9 @@ class AdaptiveGrid {
   void send_ghost_values(GhostPlan& plan, std::size_t& requests);
   /// Sorts the plan's rows into copy runs, sums and remote rows, per list: 0, within the
   /// stencil reach, 1, the others, and kRebuiltRows, the rows of blocks built afresh. With the
-  /// plan its blocks were reused from (and slot_now: old slot -> slot now), a reused block's
-  /// entries are that plan's, renumbered.
-  void group_ghost_rows(GhostPlan& plan, const GhostPlan* previous, std::span<const std::int64_t> slot_now) const;
+  /// plan its blocks were reused from, a reused block's entries are that plan's (its rows
+  /// renumbered, its copies as they were).
+  void group_ghost_rows(GhostPlan& plan, const GhostPlan* previous) const;
   /// The blocks' order for write_and_fill_stencil_ghosts() (GhostPlan::fill_when_written).
   void order_fill_while_writing(GhostPlan& plan) const;
   static constexpr std::size_t kRebuiltRows = 2;
@@ -315,8 +315,16 @@ class AdaptiveGrid {
   std::vector<Key> local_keys_;
   BlockLayout<Dim> layout_;
   std::size_t interior_points_ = 0, block_volume_ = 0;
-  std::vector<std::vector<double>> data_;  // per field: local blocks x block_volume_
-  std::vector<std::vector<double>> spare_data_;  // the arrays of the previous adaptation (scratch, not copied)
+  // Per field: pages of block_volume_ values, then the ghost plan's scratch points. A block
+  // keeps its page while it stays on this rank unchanged, so an adaptation writes only the
+  // blocks it changes, and the ghost plan's rows of the blocks it reuses (which address points
+  // by page) stay valid as they are; pages given up are reused by later new blocks.
+  std::vector<std::vector<double>> data_;
+  std::vector<std::int32_t> page_of_;    // per local slot
+  std::vector<std::int32_t> free_pages_;
+  std::size_t pages_ = 0;                // pages the field arrays hold
+  /// Where slot's array starts in the field arrays.
+  std::size_t block_base(std::size_t slot) const { return static_cast<std::size_t>(page_of_[slot]) * block_volume_; }
   std::unique_ptr<GhostPlan> plan_;
   std::unique_ptr<GhostPlan> spare_plan_;  ///< the plan the last rebuild replaced: storage for the next
   /// Drawn afresh (process-wide) whenever the ghost plan is built; copies share it, so an
@@ -427,7 +435,7 @@ void AdaptiveGrid<Dim>::sample(F&& f) {
         x[au] = x0[au] + (i[au] - layout_.ghosts) * h[au];
       }
       f(x, std::span<double>(values));
-      const auto at = static_cast<std::size_t>(shape.index(i)) + s * block_volume_;
+      const auto at = static_cast<std::size_t>(shape.index(i)) + block_base(s);
       for (std::size_t k = 0; k < values.size(); ++k) data_[k][at] = values[k];
     }
   }
