@@ -98,6 +98,10 @@ struct GridConfig {
   int derivative_accuracy = 4;       ///< finite-difference order of the derivative operators
   CurveOrder curve = CurveOrder::kHilbert;
   std::vector<std::string> fields;   ///< named fields held at every point
+  /// Write the field arrays again in slot order when adaptations have scattered the blocks'
+  /// pages and the arrays outgrow the caches (adapt_with_tags). Tests switch it off to take the
+  /// reuse of ghost rows through every cycle.
+  bool keep_pages_in_order = true;
 };
 
 enum class Normalisation { kAbsolute, kLinf };

@@ -515,8 +515,9 @@ TEST(AdaptiveGrid, FillingWhileWritingIsWritingThenFilling3D) { filling_while_wr
 // (group_ghost_rows); with a stencil reach set (reach > 0) they fall in two lists, both filled,
 // and the reach changes every cycle.
 template <int Dim>
-void reused_ghost_rows_match_a_fresh_plan(bool periodic, int reach = 0) {
-  const auto c = front_grid<Dim>(periodic);
+void reused_ghost_rows_match_a_fresh_plan(bool periodic, int reach = 0, bool keep_pages_in_order = false) {
+  auto c = front_grid<Dim>(periodic);
+  c.keep_pages_in_order = keep_pages_in_order;  // off: every cycle reuses what it can
   gw::AdaptiveGrid<Dim> grid(c);
   if (reach > 0) grid.set_stencil_reach(reach, 1);
   const auto th = front_threshold();
@@ -558,6 +559,7 @@ TEST(AdaptiveGrid, ReusedGhostRowsMatchAFreshPlan2D) {
   reused_ghost_rows_match_a_fresh_plan<2>(true);
   reused_ghost_rows_match_a_fresh_plan<2>(false);
   reused_ghost_rows_match_a_fresh_plan<2>(true, 2);
+  reused_ghost_rows_match_a_fresh_plan<2>(true, 2, true);  // the pages put in order when scattered
 }
 TEST(AdaptiveGrid, ReusedGhostRowsMatchAFreshPlan3D) { reused_ghost_rows_match_a_fresh_plan<3>(false); }
 
