@@ -1203,7 +1203,7 @@ void FluidModel<Dim>::measure_forces(double t) {
     const auto h = grid_->spacing(grid_->key(s).level);
     // Which bodies' control volumes (W > 0: the box grown by the ramp's half-width) this block touches.
     std::vector<std::size_t> shells;
-    for (std::size_t k = 0; k < bodies; ++k) {
+    for (std::size_t k = 0; k < bodies && penalization_.control_volume_check; ++k) {
       const double outer = penalization_.bodies[k].control_half_width + ramp_width(penalization_.bodies[k]);
       bool overlaps = true;
       for (int a = 0; a < Dim; ++a) {
@@ -1211,7 +1211,7 @@ void FluidModel<Dim>::measure_forces(double t) {
         const double lo = x0[au] - centre[k][au], hi = lo + (bs - 1) * h[au];
         overlaps = overlaps && hi >= -outer && lo <= outer;
       }
-      if (overlaps && penalization_.control_volume_check) shells.push_back(k);
+      if (overlaps) shells.push_back(k);
     }
     if (masked_[s].empty() && shells.empty()) continue;
     // The box weight is separable, W = prod_a S(d_a): its factors and their slopes are tabulated

@@ -41,6 +41,15 @@ struct Term {
 /// interior along an axis: 0 inside, k in the k-th ghost layer.
 constexpr int ghost_depth(int x, int bs, int g) { return x < g ? g - x : x >= g + bs ? x - g - bs + 1 : 0; }
 
+/// Adds `shift` to the field-array indices at or beyond `scratch_start`: a reused block's
+/// references to its scratch points, which moved with the plan, while its block points (all
+/// below scratch_start, in pages the block and its sources kept) stay.
+void shift_scratch_points(std::span<std::int32_t> indices, std::int64_t scratch_start, std::int64_t shift) {
+  if (shift == 0) return;
+  const auto start = static_cast<std::int32_t>(scratch_start), by = static_cast<std::int32_t>(shift);
+  for (auto& i : indices) i += i >= start ? by : 0;
+}
+
 /// A cheap monotone tick count, to time parts of a loop apart: the x86 time-stamp counter
 /// (constant rate on current processors), else steady_clock's.
 inline std::uint64_t cycle_count() {
@@ -102,8 +111,10 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   // block_scratch_begin). Neighbouring ghosts share most of these points: in 2D a face's odd-odd
   // rows fall from 36 terms to 6, plus a few scratch rows of 6 at its ends. The sum is the
   // tensor's in another order (equal to round-off), and the same on any number of ranks.
-  std::int64_t scratch_start = 0;  // local blocks x block volume when built
+  std::int64_t scratch_start = 0;  // pages x block volume when built
   std::vector<std::int32_t> block_scratch_begin;
+  /// Where block `slot`'s scratch points start in the field arrays.
+  std::int64_t scratch_of(std::size_t slot) const { return scratch_start + block_scratch_begin[slot]; }
   // Per local block, for reuse after an adaptation: its first row, whether any of its terms is
   // remote, its position along the curve, and the leaves its rows were resolved from (as local
   // slots, -1 for another rank's; flattened); per local term, the local block it reads (so a
@@ -314,11 +325,16 @@ void AdaptiveGrid<Dim>::refresh_partition() {
 
 template <int Dim>
 void AdaptiveGrid<Dim>::allocate_local() {
+  pages_in_slot_order();
+  data_.assign(config_.fields.size(), std::vector<double>(pages_ * block_volume_, 0.0));
+}
+
+template <int Dim>
+void AdaptiveGrid<Dim>::pages_in_slot_order() {
   pages_ = local_keys_.size();
   page_of_.resize(pages_);
   std::iota(page_of_.begin(), page_of_.end(), 0);
   free_pages_.clear();
-  data_.assign(config_.fields.size(), std::vector<double>(pages_ * block_volume_, 0.0));
 }
 
 template <int Dim>
@@ -756,22 +772,16 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
       const auto t0 = static_cast<std::ptrdiff_t>(old.local_begin[static_cast<std::size_t>(k0)]);
       const auto t1 = static_cast<std::ptrdiff_t>(old.local_begin[static_cast<std::size_t>(k1)]);
       const std::size_t rows = plan.dest.size(), first_term = plan.local_src.size();
-      // Its scratch points keep their order, moved to where this plan's scratch for it starts.
-      const auto scratch_shift = static_cast<std::int32_t>(plan.scratch_start + scratch_points -
-                                                           (old.scratch_start + old.block_scratch_begin[*o]));
-      const auto old_scratch = static_cast<std::int32_t>(old.scratch_start);
       plan.dest.insert(plan.dest.end(), old.dest.begin() + k0, old.dest.begin() + k1);
       plan.remote_lead.resize(plan.dest.size(), 0);  // a reused block has no remote terms
       plan.row_stage.insert(plan.row_stage.end(), old.row_stage.begin() + k0, old.row_stage.begin() + k1);
       plan.local_src.insert(plan.local_src.end(), old.local_src.begin() + t0, old.local_src.begin() + t1);
       plan.local_src_page.insert(plan.local_src_page.end(), old.local_src_page.begin() + t0, old.local_src_page.begin() + t1);
       plan.local_weight.insert(plan.local_weight.end(), old.local_weight.begin() + t0, old.local_weight.begin() + t1);
-      if (scratch_shift != 0) {
-        for (std::size_t k = rows; k < plan.dest.size(); ++k)
-          plan.dest[k] += plan.dest[k] >= old_scratch ? scratch_shift : 0;
-        for (std::size_t t = first_term; t < plan.local_src.size(); ++t)
-          plan.local_src[t] += plan.local_src_page[t] == GhostPlan::kScratchPage ? scratch_shift : 0;
-      }
+      // Its scratch points keep their order, moved to where this plan's scratch for it starts.
+      const std::int64_t scratch_shift = plan.scratch_of(s) - old.scratch_of(*o);
+      shift_scratch_points(std::span(plan.dest).subspan(rows), old.scratch_start, scratch_shift);
+      shift_scratch_points(std::span(plan.local_src).subspan(first_term), old.scratch_start, scratch_shift);
       const auto term_shift = static_cast<std::int32_t>(first_term) - static_cast<std::int32_t>(t0);
       plan.local_begin.resize(rows + 1 + static_cast<std::size_t>(k1 - k0));
       std::transform(old.local_begin.begin() + k0 + 1, old.local_begin.begin() + k1 + 1, plan.local_begin.begin() + static_cast<std::ptrdiff_t>(rows) + 1,
@@ -1251,12 +1261,9 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan, const GhostPlan* previ
         to.begin.resize(first_begin + static_cast<std::size_t>(r1 - r0));
         std::transform(from.begin.begin() + r0 + 1, from.begin.begin() + r1 + 1, to.begin.begin() + static_cast<std::ptrdiff_t>(first_begin),
                        [term_shift](std::int32_t begin) { return begin + term_shift; });
-        const auto scratch_shift = static_cast<std::int32_t>(plan.scratch_start + plan.block_scratch_begin[b] -
-                                                             (previous->scratch_start + previous->block_scratch_begin[ou]));
-        if (scratch_shift == 0) continue;
-        const auto old_scratch = static_cast<std::int32_t>(previous->scratch_start);  // block points lie below
-        for (std::size_t k = first_dest; k < to.dest.size(); ++k) to.dest[k] += to.dest[k] >= old_scratch ? scratch_shift : 0;
-        for (std::size_t t = first_src; t < to.src.size(); ++t) to.src[t] += to.src[t] >= old_scratch ? scratch_shift : 0;
+        const std::int64_t scratch_shift = plan.scratch_of(b) - previous->scratch_of(ou);
+        shift_scratch_points(std::span(to.dest).subspan(first_dest), previous->scratch_start, scratch_shift);
+        shift_scratch_points(std::span(to.src).subspan(first_src), previous->scratch_start, scratch_shift);
       }
     }
   order_fill_while_writing(plan);
@@ -2127,15 +2134,16 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_with_tags(std::span<const AdaptTag> tags) {
   for (std::size_t s = 1; s < page_of_.size(); ++s) breaks += page_of_[s] != page_of_[s - 1] + 1 ? 1 : 0;
   if (config_.keep_pages_in_order && breaks * 8 > page_of_.size() &&
       pages_ * block_volume_ * data_.size() * sizeof(double) > kInCache) {
-    std::vector<std::vector<double>> in_order(data_.size(), std::vector<double>(page_of_.size() * block_volume_));
-    for (std::size_t f = 0; f < data_.size(); ++f)
-      for (std::size_t s = 0; s < page_of_.size(); ++s)
-        std::copy_n(data_[f].begin() + static_cast<std::ptrdiff_t>(block_base(s)), block_volume_,
-                    in_order[f].begin() + static_cast<std::ptrdiff_t>(s * block_volume_));
+    std::vector<std::vector<double>> in_order(data_.size());
+    for (std::size_t f = 0; f < data_.size(); ++f) {
+      in_order[f].reserve(page_of_.size() * block_volume_);
+      for (std::size_t s = 0; s < page_of_.size(); ++s) {
+        const auto from = data_[f].begin() + static_cast<std::ptrdiff_t>(block_base(s));
+        in_order[f].insert(in_order[f].end(), from, from + static_cast<std::ptrdiff_t>(block_volume_));
+      }
+    }
     data_ = std::move(in_order);
-    pages_ = page_of_.size();
-    std::iota(page_of_.begin(), page_of_.end(), 0);
-    free_pages_.clear();
+    pages_in_slot_order();
     build_ghost_plan();
   } else {
     build_ghost_plan(std::move(plan_), old_keys);

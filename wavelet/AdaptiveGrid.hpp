@@ -302,6 +302,8 @@ class AdaptiveGrid {
   void order_fill_while_writing(GhostPlan& plan) const;
   static constexpr std::size_t kRebuiltRows = 2;
   void allocate_local();
+  /// Block slot s in page s, no page free (a fresh layout, or the arrays written in slot order).
+  void pages_in_slot_order();
   /// Builds the ghost plan of the current grid. With the plan of the grid before an adaptation
   /// and that grid's local keys, the rows of blocks whose neighbourhood did not change are
   /// copied instead of resolved again.
