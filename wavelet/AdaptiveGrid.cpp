@@ -151,6 +151,14 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   // Lists 0 and 1: the two groups; list 2: the rows of the blocks whose rows were built afresh
   // by the last rebuild (both groups: the others' ghosts came through the adaptation unchanged).
   std::array<std::vector<CopyRun>, 3> copy_runs;
+  // The ghosts copied from a same-level leaf of this rank (most of them), which have no rows:
+  // one segment (a CopyRun of one row) per line of the block's array and region around it,
+  // `length` consecutive points of that leaf, in array order; block `slot`'s from
+  // block_segment_begin[slot]. A rebuild that reuses a block copies its few segments instead of
+  // a row and a term per point, and the grouping splits each segment by reach group instead
+  // of testing its points one by one as rows (they were two thirds of a rebuild's rows).
+  std::vector<CopyRun> segments;
+  std::vector<std::int32_t> block_segment_begin;
   std::array<std::vector<std::int32_t>, 3> sum_rows, remote_rows;
   // Per list and stage (1, 2: index stage - 1), the rows summed from other ghost rows: filled
   // after everything else, stage by stage (their terms are all local).
@@ -193,6 +201,7 @@ struct AdaptiveGrid<Dim>::GhostPlan {
     auto empty = [](auto&... lists) { (lists.clear(), ...); };
     empty(dest, local_begin, remote_begin, local_src, local_weight, remote_src, remote_w, remote_lead, row_stage, kind,
           block_scratch_begin, block_row_begin, block_dependency_begin, block_has_remote, block_rebuilt, block_curve,
+          segments, block_segment_begin,
           block_dependencies, local_src_page, recv_rank, recv_first, recv_count, send_rank, send_first, send_count,
           send_src, send_buffer, recv_buffer, requests);
     scratch_start = 0;
@@ -588,6 +597,7 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
   plan.block_row_begin.push_back(0);
   plan.block_dependency_begin.push_back(0);
   plan.block_scratch_begin.push_back(0);
+  plan.block_segment_begin.push_back(0);
   plan.scratch_start = static_cast<std::int64_t>(pages_ * block_volume_);
   // The plan numbers points in 32 bits (GhostPlan::local_src).
   auto refuse_beyond_32_bits = [](std::int64_t points) {
@@ -666,6 +676,7 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
     plan.local_weight.reserve(previous->local_weight.size());
     plan.weights = previous->weights;  // the rows copied from it keep their weights' indices
     plan.block_dependencies.reserve(previous->block_dependencies.size());
+    plan.segments.reserve(previous->segments.size());
   }
 
   // Appends the terms a resolution left in `terms` to row `row`: sorted by (leaf, point), the
@@ -775,6 +786,8 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
       plan.dest.insert(plan.dest.end(), old.dest.begin() + k0, old.dest.begin() + k1);
       plan.remote_lead.resize(plan.dest.size(), 0);  // a reused block has no remote terms
       plan.row_stage.insert(plan.row_stage.end(), old.row_stage.begin() + k0, old.row_stage.begin() + k1);
+      plan.segments.insert(plan.segments.end(), old.segments.begin() + old.block_segment_begin[*o],
+                           old.segments.begin() + old.block_segment_begin[*o + 1]);
       plan.local_src.insert(plan.local_src.end(), old.local_src.begin() + t0, old.local_src.begin() + t1);
       plan.local_src_page.insert(plan.local_src_page.end(), old.local_src_page.begin() + t0, old.local_src_page.begin() + t1);
       plan.local_weight.insert(plan.local_weight.end(), old.local_weight.begin() + t0, old.local_weight.begin() + t1);
@@ -800,6 +813,7 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
       plan.block_scratch_begin.push_back(static_cast<std::int32_t>(scratch_points));
       plan.block_row_begin.push_back(static_cast<std::int32_t>(plan.dest.size()));
       plan.block_dependency_begin.push_back(static_cast<std::int32_t>(plan.block_dependencies.size()));
+      plan.block_segment_begin.push_back(static_cast<std::int32_t>(plan.segments.size()));
       continue;
     }
     found.clear();
@@ -808,19 +822,10 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
     const auto c = key.coords();
     std::array<GlobalIndex64, Dim> points_along{};  // per axis, at the block's level
     for (int a = 0; a < Dim; ++a) points_along[static_cast<std::size_t>(a)] = resolver.points_along(a, key.level);
-    // One row per ghost point, in array order: the row lists are sized once and written by
-    // index (a push_back per row and list was a tenth of a rebuild).
-    const std::size_t first_row = plan.dest.size();
-    const std::size_t ghost_rows = block_volume_ - interior_points_;
-    plan.dest.resize(first_row + ghost_rows);
-    plan.local_begin.resize(first_row + ghost_rows + 1);
-    plan.remote_begin.resize(first_row + ghost_rows + 1);
-    plan.remote_lead.resize(first_row + ghost_rows, 0);
-    plan.row_stage.resize(first_row + ghost_rows, 0);
-    std::size_t row = first_row;
     // This block's scratch points (separable prolongation, GhostPlan): where they would sit in
     // its array (beyond it along one axis) and their global index.
     scratch.clear();
+    std::size_t row = plan.dest.size();
     auto end_row = [&] {
       plan.local_begin[row + 1] = static_cast<std::int32_t>(plan.local_src.size());
       plan.remote_begin[row + 1] = static_cast<std::int32_t>(remote_pending.size());
@@ -830,6 +835,7 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
     // same-level leaf of this rank there, or -1: its ghosts are copies from it (most ghosts),
     // found without a lookup per point.
     std::array<std::int64_t, Dim == 1 ? 3 : Dim == 2 ? 9 : 27> same_level{};
+    std::size_t segment_points = 0;
     for (std::size_t r = 0; r < same_level.size(); ++r) {
       std::array<int, Dim> direction{};
       bool centre = true;
@@ -844,7 +850,19 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
       if (!leaf || *leaf < first_leaf_ || *leaf >= first_leaf_ + local_keys_.size()) continue;
       same_level[r] = static_cast<std::int64_t>(*leaf - first_leaf_);
       found.push_back(*leaf);  // a leaf its rows read
+      std::size_t region_points = 1;  // copied by segment (GhostPlan::segments), without rows
+      for (int a = 0; a < Dim; ++a) region_points *= static_cast<std::size_t>(direction[static_cast<std::size_t>(a)] == 0 ? bs : g);
+      segment_points += region_points;
     }
+    // One row per other ghost point, in array order: the row lists are sized once and written
+    // by index (a push_back per row and list was a tenth of a rebuild).
+    const std::size_t first_row = row;
+    const std::size_t ghost_rows = block_volume_ - interior_points_ - segment_points;
+    plan.dest.resize(first_row + ghost_rows);
+    plan.local_begin.resize(first_row + ghost_rows + 1);
+    plan.remote_begin.resize(first_row + ghost_rows + 1);
+    plan.remote_lead.resize(first_row + ghost_rows, 0);
+    plan.row_stage.resize(first_row + ghost_rows, 0);
     // A ghost point outside the regions of same-level leaves of this rank (those are copied by
     // segment, below): outside the domain, injected from a finer leaf of this rank found by
     // lookup, or a weighted row (coarser leaves, other ranks).
@@ -928,20 +946,8 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
             q[a] -= (static_cast<int>(rest % 3) - 1) * bs;
           const auto first_src = static_cast<std::int32_t>(static_cast<std::int64_t>(block_base(static_cast<std::size_t>(from))) + shape.index(q));
           const auto first_dest = static_cast<std::int32_t>(block_base(s) + line) + x0;
-          const auto n = static_cast<std::size_t>(x1 - x0);
-          const std::size_t t0 = plan.local_src.size();
-          plan.local_src.resize(t0 + n);
-          plan.local_src_page.resize(t0 + n, page_of_[static_cast<std::size_t>(from)]);
-          plan.local_weight.resize(t0 + n, WeightTable::kOne);
-          const auto pending = static_cast<std::int32_t>(remote_pending.size());
-          for (std::size_t k = 0; k < n; ++k) {  // kind: kSameLevel, as plan.kind starts
-            const auto d = static_cast<std::int32_t>(k);
-            plan.dest[row + k] = first_dest + d;
-            plan.local_src[t0 + k] = first_src + d;
-            plan.local_begin[row + k + 1] = static_cast<std::int32_t>(t0 + k + 1);
-            plan.remote_begin[row + k + 1] = pending;
-          }
-          row += n;
+          // kind: kSameLevel, as plan.kind starts
+          plan.segments.push_back({first_dest, first_src, x1 - x0, page_of_[static_cast<std::size_t>(from)]});
           continue;
         }
         for (int x = x0; x < x1; ++x) {
@@ -985,6 +991,7 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
     plan.reused_from.push_back(-1);
     plan.block_row_begin.push_back(static_cast<std::int32_t>(plan.dest.size()));
     plan.block_dependency_begin.push_back(static_cast<std::int32_t>(plan.block_dependencies.size()));
+    plan.block_segment_begin.push_back(static_cast<std::int32_t>(plan.segments.size()));
   }
 
   refuse_beyond_32_bits(plan.scratch_start + scratch_points);
@@ -1115,40 +1122,45 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan, const GhostPlan* previ
     }
     run_open.fill(false);
   };
-  // Row k into list `list`, and (a row of a block built afresh) into kRebuiltRows too: sorted
-  // once for both.
+  // Into list `list`, and (for a block built afresh) into kRebuiltRows too: sorted once for both.
+  const auto into = [](std::size_t list, bool rebuilt, auto&& append) {
+    append(list);
+    if (rebuilt) append(kRebuiltRows);
+  };
+  // `length` consecutive points copied from src on: they extend the open copy run where they
+  // continue it, else start the next.
+  auto add_copies = [&](std::size_t list, bool rebuilt, std::int32_t dest, std::int32_t src, std::int32_t length,
+                        std::int32_t src_page) {
+    into(list, rebuilt, [&](std::size_t l) {
+      auto& run = open_run[l];
+      if (run_open[l] && dest == run.dest + run.length && src == run.src + run.length) {
+        run.length += length;
+        return;
+      }
+      if (run_open[l]) append_run(l, run);
+      run = {dest, src, length, src_page};
+      run_open[l] = true;
+    });
+  };
+  // Row k.
   auto add = [&](std::size_t list, std::size_t k, bool rebuilt) {
-    const auto into = [&](auto&& append) {
-      append(list);
-      if (rebuilt) append(kRebuiltRows);
-    };
     const auto row = static_cast<std::int32_t>(k);
     if (plan.row_stage[k] > 0) {
-      into([&](std::size_t l) { plan.derived_rows[l][plan.row_stage[k] - 1u].push_back(row); });
+      into(list, rebuilt, [&](std::size_t l) { plan.derived_rows[l][plan.row_stage[k] - 1u].push_back(row); });
       return;
     }
     // A row with remote terms is summed whole once its messages are in (fill_ghost_lists), its
     // local terms with them: not in the local pass as well.
     if (plan.remote_begin[k + 1] != plan.remote_begin[k]) {
-      into([&](std::size_t l) { plan.remote_rows[l].push_back(row); });
+      into(list, rebuilt, [&](std::size_t l) { plan.remote_rows[l].push_back(row); });
       return;
     }
     if (!plan.is_copy(k)) {
-      into([&](std::size_t l) { plan.sum_rows[l].push_back(row); });
+      into(list, rebuilt, [&](std::size_t l) { plan.sum_rows[l].push_back(row); });
       return;
     }
     const auto t = static_cast<std::size_t>(plan.local_begin[k]);
-    const std::int32_t dest = plan.dest[k], src = plan.local_src[t];
-    into([&](std::size_t l) {
-      auto& run = open_run[l];
-      if (run_open[l] && dest == run.dest + run.length && src == run.src + run.length) {
-        ++run.length;
-        return;
-      }
-      if (run_open[l]) append_run(l, run);
-      run = {dest, src, 1, plan.local_src_page[t]};
-      run_open[l] = true;
-    });
+    add_copies(list, rebuilt, plan.dest[k], plan.local_src[t], 1, plan.local_src_page[t]);
   };
   auto mark_block_begin = [&] {
     for (std::size_t list = 0; list < plan.block_group_begin.size(); ++list) {
@@ -1204,6 +1216,18 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan, const GhostPlan* previ
           auto& to = scratch_group[static_cast<std::size_t>(plan.local_src[t] - scratch_base)];
           to = std::min(to, group);
         }
+    }
+    // The block's segments, each split where its points change group (along axis 0 a face's
+    // ghost layers lie at different depths).
+    for (auto e = plan.block_segment_begin[s]; e < plan.block_segment_begin[s + 1]; ++e) {
+      const auto& segment = plan.segments[static_cast<std::size_t>(e)];
+      const std::uint8_t* group = group_of.data() + (segment.dest - base);
+      for (std::int32_t k = 0; k < segment.length;) {
+        std::int32_t end = k + 1;
+        while (end < segment.length && group[end] == group[k]) ++end;
+        add_copies(group[k], rebuilt, segment.dest + k, segment.src + k, end - k, segment.src_page);
+        k = end;
+      }
     }
     for (std::size_t k = first_row; k < end_row; ++k) {
       const bool in_scratch = plan.dest[k] >= plan.scratch_start;
@@ -1532,10 +1556,15 @@ std::array<std::int64_t, 4> AdaptiveGrid<Dim>::ghost_counts() const {
   // The rows address points by page, plan.kind by slot.
   std::array<std::int64_t, 4> n{};
   const GhostPlan& plan = *plan_;
-  for (std::size_t s = 0; s < local_blocks(); ++s)
+  for (std::size_t s = 0; s < local_blocks(); ++s) {
+    const std::uint8_t* kind = plan.kind.data() + s * block_volume_;
     for (auto k = static_cast<std::size_t>(plan.block_row_begin[s]); k < static_cast<std::size_t>(plan.block_row_begin[s + 1]); ++k)
-      if (plan.dest[k] < plan.scratch_start)
-        ++n[plan.kind[s * block_volume_ + (static_cast<std::size_t>(plan.dest[k]) - block_base(s))]];
+      if (plan.dest[k] < plan.scratch_start) ++n[kind[static_cast<std::size_t>(plan.dest[k]) - block_base(s)]];
+    for (auto e = plan.block_segment_begin[s]; e < plan.block_segment_begin[s + 1]; ++e) {
+      const auto& segment = plan.segments[static_cast<std::size_t>(e)];
+      for (std::int32_t k = 0; k < segment.length; ++k) ++n[kind[static_cast<std::size_t>(segment.dest + k) - block_base(s)]];
+    }
+  }
   return n;
 }
 
@@ -1551,6 +1580,11 @@ GhostPlanStats AdaptiveGrid<Dim>::ghost_plan_stats() const {
     if (plan.is_copy(k)) ++stats.copies;
     else stats.weighted_terms += terms;
     stats.longest_row = std::max(stats.longest_row, terms);
+  }
+  for (const auto& segment : plan.segments) {  // rows of one term each
+    stats.rows += segment.length;
+    stats.copies += segment.length;
+    stats.longest_row = std::max(stats.longest_row, 1);
   }
   stats.copy_rectangles = static_cast<std::int64_t>(plan.copy_runs[0].size() + plan.copy_runs[1].size());
   return stats;
@@ -2294,6 +2328,7 @@ std::size_t AdaptiveGrid<Dim>::memory_bytes() const {
     if (p) {
       bytes += p->dest.capacity() * 4 + p->local_src.capacity() * 4 + p->local_weight.capacity() * 2 +
                p->local_src_page.capacity() * 4 + p->remote_src.capacity() * 12 +
+               p->segments.capacity() * sizeof(typename GhostPlan::CopyRun) +
                p->kind.capacity() + (p->send_buffer.capacity() + p->recv_buffer.capacity()) * 8;
       for (const auto& list : p->packed)
         for (const auto& rows : list)
