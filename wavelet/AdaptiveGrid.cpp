@@ -115,10 +115,10 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   std::vector<std::int32_t> block_scratch_begin;
   /// Where block `slot`'s scratch points start in the field arrays.
   std::int64_t scratch_of(std::size_t slot) const { return scratch_start + block_scratch_begin[slot]; }
-  // Per local block, for reuse after an adaptation: its first row, whether any of its terms is
-  // remote, its position along the curve, and the leaves its rows were resolved from (as local
-  // slots, -1 for another rank's; flattened); per local term, the local block it reads (so a
-  // reused row is moved to the blocks' new slots without a division).
+  // Per local block, for reuse after an adaptation: its first row (a block reused from the
+  // previous plan has none: its grouped entries below are all that is kept of it), whether any
+  // of its terms is remote, its position along the curve, and the leaves its rows were resolved
+  // from (as local slots, -1 for another rank's; flattened).
   std::vector<std::int32_t> block_row_begin, block_dependency_begin;
   std::vector<char> block_has_remote, block_rebuilt;  // ... and whether its rows were built afresh
   std::vector<std::uint64_t> block_curve;
@@ -132,11 +132,12 @@ struct AdaptiveGrid<Dim>::GhostPlan {
     return remote_begin[k + 1] == remote_begin[k] && local_begin[k + 1] - local_begin[k] == 1 &&
            local_weight[static_cast<std::size_t>(local_begin[k])] == WeightTable::kOne;
   }
-  // The rows again, sorted for filling: copies (one local term of weight 1, nothing remote:
-  // same-level neighbours and injection from finer leaves, most ghosts), merged into runs of
-  // consecutive points (a ghost row facing one neighbour reads one of its rows), and weighted
-  // sums; and the rows with remote terms. In two groups: 0, the ghosts within the stencil reach
-  // (AdaptiveGrid::set_stencil_reach; all of them unless it is set), and 1, the others.
+  // The rows (and segments, below) again, sorted for filling: copies (one local term of weight
+  // 1, nothing remote: same-level neighbours and injection from finer leaves, most ghosts),
+  // merged into runs of consecutive points (a ghost row facing one neighbour reads one of its
+  // rows), and weighted sums; and the rows with remote terms. In two groups: 0, the ghosts
+  // within the stencil reach (AdaptiveGrid::set_stencil_reach; all of them unless it is set),
+  // and 1, the others.
   // Runs of one length that follow each other at fixed strides in the destination and the
   // source are one rectangle, as a box-to-box copy: a block's side face with two ghost layers
   // is eight runs of two values (2D, 8^2 blocks), each a few loads and a loop exit that the
@@ -154,33 +155,29 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   // The ghosts copied from a same-level leaf of this rank (most of them), which have no rows:
   // one segment (a CopyRun of one row) per line of the block's array and region around it,
   // `length` consecutive points of that leaf, in array order; block `slot`'s from
-  // block_segment_begin[slot]. A rebuild that reuses a block copies its few segments instead of
-  // a row and a term per point, and the grouping splits each segment by reach group instead
-  // of testing its points one by one as rows (they were two thirds of a rebuild's rows).
+  // block_segment_begin[slot]. The grouping splits each segment by reach group instead of
+  // testing its points one by one as rows (they were two thirds of a rebuild's rows).
   std::vector<CopyRun> segments;
   std::vector<std::int32_t> block_segment_begin;
-  std::array<std::vector<std::int32_t>, 3> sum_rows, remote_rows;
-  // Per list and stage (1, 2: index stage - 1), the rows summed from other ghost rows: filled
-  // after everything else, stage by stage (their terms are all local).
-  std::array<std::array<std::vector<std::int32_t>, 2>, 3> derived_rows;
-  // The weighted rows again, as a fill reads them: per list, its sums and its derived rows of
-  // stages 1 and 2 (kinds 0, 1, 2), each in its list's order, with their destinations and terms
-  // alongside. A fill then reads them in sequence, instead of reaching through the row numbers
-  // into the whole plan's rows and terms, where the copies' terms lie between theirs.
+  std::array<std::vector<std::int32_t>, 3> remote_rows;  // row numbers
+  // The local weighted rows, as a fill reads them: per list, its sums and (kinds 1 and 2) the
+  // rows summed from other ghost rows, of stages 1 and 2, filled after everything else, stage by
+  // stage. Each with its destination and terms alongside: a fill reads them in sequence, and a
+  // reused block's are copied from the previous plan, which kept no rows for it.
   struct PackedRows {
     std::vector<std::int32_t> dest, begin, src;
     std::vector<std::uint16_t> weight;
     std::size_t rows() const { return dest.size(); }
   };
   std::array<std::array<PackedRows, 3>, 3> packed;
-  // Per kind of packed rows, the index of its row lists in block_group_begin (below): a block's
-  // range of packed rows is its range of those row numbers, whose order they keep.
+  // Per kind of packed rows, its index in block_group_begin (below).
   static constexpr std::array<std::size_t, 3> kPackedGroup{1, 3, 4};
   // Per list 0 and 1 and per local block (and one past the last): where its entries begin in
-  // copy_runs, sum_rows, remote_rows, derived_rows[.][0] and [.][1]. Each block's entries are
+  // copy_runs, packed[.][0], remote_rows, packed[.][1] and packed[.][2]. Each block's entries are
   // contiguous (no run spans two blocks), so a block whose rows are reused after an adaptation
-  // takes its entries from the old plan, renumbered, instead of grouping its rows again
-  // (group_ghost_rows). grouped_reach: the stencil reach they were grouped for.
+  // takes its entries from the old plan instead of having its rows built and grouped again
+  // (group_ghost_rows). grouped_reach: the stencil reach they were grouped for; a plan grouped
+  // for another reach is not reused.
   std::array<std::array<std::vector<std::int32_t>, 5>, 2> block_group_begin;
   std::array<int, 3> grouped_reach{-1, -1, -1};
   // Per local block: its slot in the plan it was reused from, or -1 (built afresh).
@@ -206,8 +203,7 @@ struct AdaptiveGrid<Dim>::GhostPlan {
           send_src, send_buffer, recv_buffer, requests);
     scratch_start = 0;
     for (std::size_t list = 0; list < copy_runs.size(); ++list) {
-      empty(copy_runs[list], sum_rows[list], remote_rows[list]);
-      for (auto& stage : derived_rows[list]) stage.clear();
+      empty(copy_runs[list], remote_rows[list]);
       for (auto& rows : packed[list]) empty(rows.dest, rows.begin, rows.src, rows.weight);
     }
     for (auto& list : block_group_begin)
@@ -633,13 +629,15 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
   // Reuse after an adaptation. A block's rows are a function of the leaves containing the
   // points its ghosts resolve to (leaves tile the domain, so whichever lookup found them, the
   // same leaves give the same rows). If the block is still here and every one of those leaves
-  // is still a leaf owned by this rank, its rows are copied with block slots renumbered;
-  // otherwise (or when a row read another rank) they are built again.
+  // is still a leaf owned by this rank, its grouped entries are taken from the previous plan
+  // (group_ghost_rows) and it gets no rows; otherwise (or when a row read another rank) they are
+  // built again. A plan grouped for another stencil reach is not reused.
   // The old and the new local blocks are both sorted by (curve index, key): one merge pairs the
   // blocks still here with their old slots, without a lookup per block and per leaf read.
+  const GhostPlan* reused = previous && previous->grouped_reach == stencil_reach_ ? previous.get() : nullptr;
   std::vector<std::int64_t> slot_now;  // previous slot -> slot now, -1 if not local any more
   std::vector<std::int64_t> slot_before(local_keys_.size(), -1);  // slot now -> previous slot, or -1
-  if (previous) {
+  if (reused) {
     slot_now.assign(previous_keys.size(), -1);
     std::size_t o = 0, n = 0;
     while (o < previous_keys.size() && n < local_keys_.size()) {
@@ -658,7 +656,7 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
     }
   }
   auto reusable = [&](std::size_t slot) -> std::optional<std::size_t> {
-    if (!previous || slot_before[slot] < 0) return std::nullopt;
+    if (!reused || slot_before[slot] < 0) return std::nullopt;
     const auto o = static_cast<std::size_t>(slot_before[slot]);
     if (previous->block_has_remote[o]) return std::nullopt;
     for (auto d = previous->block_dependency_begin[o]; d < previous->block_dependency_begin[o + 1]; ++d) {
@@ -667,17 +665,7 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
     }
     return o;
   };
-  if (previous) {  // about the same size again: no regrowth
-    plan.dest.reserve(previous->dest.size());
-    plan.local_begin.reserve(previous->local_begin.size());
-    plan.remote_begin.reserve(previous->remote_begin.size());
-    plan.local_src.reserve(previous->local_src.size());
-    plan.local_src_page.reserve(previous->local_src_page.size());
-    plan.local_weight.reserve(previous->local_weight.size());
-    plan.weights = previous->weights;  // the rows copied from it keep their weights' indices
-    plan.block_dependencies.reserve(previous->block_dependencies.size());
-    plan.segments.reserve(previous->segments.size());
-  }
+  if (reused) plan.weights = reused->weights;  // the rows taken from it keep their weights' indices
 
   // Appends the terms a resolution left in `terms` to row `row`: sorted by (leaf, point), the
   // same order on any number of ranks, repeated points merged, zero weights dropped.
@@ -774,33 +762,11 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
     const Key key = local_keys_[s];
     plan.block_curve.push_back(forest_.leaf_curve_index(first_leaf_ + s));
     if (const auto o = reusable(s)) {
-      // Bulk copies: rows [k0, k1) with terms [t0, t1) of the previous plan. The block and every
-      // leaf its rows read kept their pages, so the rows address the same points: only their
-      // place in the lists changes, and where the block's scratch points are.
-      const GhostPlan& old = *previous;
-      const auto k0 = static_cast<std::ptrdiff_t>(old.block_row_begin[*o]);
-      const auto k1 = static_cast<std::ptrdiff_t>(old.block_row_begin[*o + 1]);
-      const auto t0 = static_cast<std::ptrdiff_t>(old.local_begin[static_cast<std::size_t>(k0)]);
-      const auto t1 = static_cast<std::ptrdiff_t>(old.local_begin[static_cast<std::size_t>(k1)]);
-      const std::size_t rows = plan.dest.size(), first_term = plan.local_src.size();
-      plan.dest.insert(plan.dest.end(), old.dest.begin() + k0, old.dest.begin() + k1);
-      plan.remote_lead.resize(plan.dest.size(), 0);  // a reused block has no remote terms
-      plan.row_stage.insert(plan.row_stage.end(), old.row_stage.begin() + k0, old.row_stage.begin() + k1);
-      plan.segments.insert(plan.segments.end(), old.segments.begin() + old.block_segment_begin[*o],
-                           old.segments.begin() + old.block_segment_begin[*o + 1]);
-      plan.local_src.insert(plan.local_src.end(), old.local_src.begin() + t0, old.local_src.begin() + t1);
-      plan.local_src_page.insert(plan.local_src_page.end(), old.local_src_page.begin() + t0, old.local_src_page.begin() + t1);
-      plan.local_weight.insert(plan.local_weight.end(), old.local_weight.begin() + t0, old.local_weight.begin() + t1);
-      // Its scratch points keep their order, moved to where this plan's scratch for it starts.
-      const std::int64_t scratch_shift = plan.scratch_of(s) - old.scratch_of(*o);
-      shift_scratch_points(std::span(plan.dest).subspan(rows), old.scratch_start, scratch_shift);
-      shift_scratch_points(std::span(plan.local_src).subspan(first_term), old.scratch_start, scratch_shift);
-      const auto term_shift = static_cast<std::int32_t>(first_term) - static_cast<std::int32_t>(t0);
-      plan.local_begin.resize(rows + 1 + static_cast<std::size_t>(k1 - k0));
-      std::transform(old.local_begin.begin() + k0 + 1, old.local_begin.begin() + k1 + 1, plan.local_begin.begin() + static_cast<std::ptrdiff_t>(rows) + 1,
-                     [term_shift](std::int32_t begin) { return begin + term_shift; });
-      plan.remote_begin.resize(plan.remote_begin.size() + static_cast<std::size_t>(k1 - k0),
-                               static_cast<std::int32_t>(remote_pending.size()));
+      // Nothing of its rows is copied: group_ghost_rows takes its grouped entries from the
+      // previous plan. The block and every leaf its rows read kept their pages, so they address
+      // the same points, but for the block's scratch points, which move to where this plan's
+      // scratch for it starts.
+      const GhostPlan& old = *reused;
       std::copy_n(old.kind.begin() + static_cast<std::ptrdiff_t>(*o * block_volume_), block_volume_,
                   plan.kind.begin() + static_cast<std::ptrdiff_t>(s * block_volume_));
       for (auto d = old.block_dependency_begin[*o]; d < old.block_dependency_begin[*o + 1]; ++d)
@@ -1050,7 +1016,7 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
   plan.send_buffer.assign(plan.send_src.size() * static_cast<std::size_t>(F), 0.0);
   plan.recv_buffer.assign(static_cast<std::size_t>(recv_first[P]) * static_cast<std::size_t>(F), 0.0);
   plan.requests.resize(plan.recv_rank.size() + plan.send_rank.size());
-  group_ghost_rows(plan, previous.get());
+  group_ghost_rows(plan, reused);
   spare_plan_ = std::move(previous);
   // The scratch points sit after the blocks in every field array.
   for (auto& field : data_) field.resize(static_cast<std::size_t>(plan.scratch_start + scratch_points), 0.0);
@@ -1060,14 +1026,20 @@ template <int Dim>
 void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan, const GhostPlan* previous) const {
   for (std::size_t list = 0; list < plan.copy_runs.size(); ++list) {
     plan.copy_runs[list].clear();
-    plan.sum_rows[list].clear();
     plan.remote_rows[list].clear();
-    for (auto& stage : plan.derived_rows[list]) stage.clear();
+    for (auto& rows : plan.packed[list]) {
+      rows.dest.clear();
+      rows.src.clear();
+      rows.weight.clear();
+      rows.begin.assign(1, 0);
+    }
   }
   for (auto& list : plan.block_group_begin)
     for (auto& begin : list) begin.clear();
-  // The old plan's grouping serves the blocks reused from it if it was made for this reach.
-  const bool regroup_reused = !previous || previous->grouped_reach != stencil_reach_;
+  // The blocks reused from the previous plan have no rows: their entries are its grouping's,
+  // which build_ghost_plan reuses only if it was made for this reach.
+  if (previous && previous->grouped_reach != stencil_reach_)
+    throw std::logic_error("AdaptiveGrid: ghost rows reused from a plan grouped for another stencil reach");
   plan.grouped_reach = stencil_reach_;
   // Per array point: its group (0 within the stencil reach, interior points unused).
   const auto shape = layout_.shape();
@@ -1142,11 +1114,21 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan, const GhostPlan* previ
       run_open[l] = true;
     });
   };
+  // Row k, all its terms local, to the packed rows of a kind (0: sums, 1 and 2: the stages of
+  // those summed from other ghost rows).
+  auto pack = [&](std::size_t l, std::size_t kind, std::size_t k) {
+    auto& to = plan.packed[l][kind];
+    const auto t0 = static_cast<std::ptrdiff_t>(plan.local_begin[k]), t1 = static_cast<std::ptrdiff_t>(plan.local_begin[k + 1]);
+    to.dest.push_back(plan.dest[k]);
+    to.src.insert(to.src.end(), plan.local_src.begin() + t0, plan.local_src.begin() + t1);
+    to.weight.insert(to.weight.end(), plan.local_weight.begin() + t0, plan.local_weight.begin() + t1);
+    to.begin.push_back(static_cast<std::int32_t>(to.src.size()));
+  };
   // Row k.
   auto add = [&](std::size_t list, std::size_t k, bool rebuilt) {
     const auto row = static_cast<std::int32_t>(k);
     if (plan.row_stage[k] > 0) {
-      into(list, rebuilt, [&](std::size_t l) { plan.derived_rows[l][plan.row_stage[k] - 1u].push_back(row); });
+      into(list, rebuilt, [&](std::size_t l) { pack(l, plan.row_stage[k], k); });
       return;
     }
     // A row with remote terms is summed whole once its messages are in (fill_ghost_lists), its
@@ -1156,7 +1138,7 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan, const GhostPlan* previ
       return;
     }
     if (!plan.is_copy(k)) {
-      into(list, rebuilt, [&](std::size_t l) { plan.sum_rows[l].push_back(row); });
+      into(list, rebuilt, [&](std::size_t l) { pack(l, 0, k); });
       return;
     }
     const auto t = static_cast<std::size_t>(plan.local_begin[k]);
@@ -1166,39 +1148,46 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan, const GhostPlan* previ
     for (std::size_t list = 0; list < plan.block_group_begin.size(); ++list) {
       auto& begin = plan.block_group_begin[list];
       begin[0].push_back(static_cast<std::int32_t>(plan.copy_runs[list].size()));
-      begin[1].push_back(static_cast<std::int32_t>(plan.sum_rows[list].size()));
+      for (std::size_t kind = 0; kind < 3; ++kind)
+        begin[GhostPlan::kPackedGroup[kind]].push_back(static_cast<std::int32_t>(plan.packed[list][kind].rows()));
       begin[2].push_back(static_cast<std::int32_t>(plan.remote_rows[list].size()));
-      begin[3].push_back(static_cast<std::int32_t>(plan.derived_rows[list][0].size()));
-      begin[4].push_back(static_cast<std::int32_t>(plan.derived_rows[list][1].size()));
     }
   };
-  // A reused block's entries in lists 0 and 1, from the old plan (slot o): rows renumbered by
-  // the shift of its first row; its copies as they were (they read and write block points,
-  // addressed by pages, which the block and its sources kept). It has no remote rows and none in
-  // list 2.
+  // A reused block's entries in lists 0 and 1, from the old plan (slot o): its copies as they
+  // were (they read and write block points, addressed by pages, which the block and its sources
+  // kept); its packed rows as one range per kind, only their references to its scratch points
+  // moved (no other block's rows read them). It has no remote rows and none in list 2.
   auto take_old_entries = [&](std::size_t s, std::size_t o) {
     const GhostPlan& old = *previous;
-    const std::int32_t row_shift = plan.block_row_begin[s] - old.block_row_begin[o];
+    const std::int64_t scratch_shift = plan.scratch_of(s) - old.scratch_of(o);
     for (std::size_t list = 0; list < plan.block_group_begin.size(); ++list) {
       const auto& begin = old.block_group_begin[list];
       const auto& runs = old.copy_runs[list];
       plan.copy_runs[list].insert(plan.copy_runs[list].end(), runs.begin() + begin[0][o], runs.begin() + begin[0][o + 1]);
-      auto rows = [&](const std::vector<std::int32_t>& from, std::size_t kind, std::vector<std::int32_t>& to) {
-        const std::size_t at = to.size();
-        to.resize(at + static_cast<std::size_t>(begin[kind][o + 1] - begin[kind][o]));
-        std::transform(from.begin() + begin[kind][o], from.begin() + begin[kind][o + 1], to.begin() + static_cast<std::ptrdiff_t>(at),
-                       [row_shift](std::int32_t row) { return row + row_shift; });
-      };
-      rows(old.sum_rows[list], 1, plan.sum_rows[list]);
-      rows(old.derived_rows[list][0], 3, plan.derived_rows[list][0]);
-      rows(old.derived_rows[list][1], 4, plan.derived_rows[list][1]);
+      for (std::size_t kind = 0; kind < 3; ++kind) {
+        const auto& from = old.packed[list][kind];
+        auto& to = plan.packed[list][kind];
+        const auto r0 = begin[GhostPlan::kPackedGroup[kind]][o], r1 = begin[GhostPlan::kPackedGroup[kind]][o + 1];
+        const auto t0 = from.begin[static_cast<std::size_t>(r0)], t1 = from.begin[static_cast<std::size_t>(r1)];
+        const std::size_t first_dest = to.dest.size(), first_src = to.src.size();
+        to.dest.insert(to.dest.end(), from.dest.begin() + r0, from.dest.begin() + r1);
+        to.src.insert(to.src.end(), from.src.begin() + t0, from.src.begin() + t1);
+        to.weight.insert(to.weight.end(), from.weight.begin() + t0, from.weight.begin() + t1);
+        const auto term_shift = static_cast<std::int32_t>(first_src) - t0;
+        const std::size_t first_begin = to.begin.size();
+        to.begin.resize(first_begin + static_cast<std::size_t>(r1 - r0));
+        std::transform(from.begin.begin() + r0 + 1, from.begin.begin() + r1 + 1, to.begin.begin() + static_cast<std::ptrdiff_t>(first_begin),
+                       [term_shift](std::int32_t first_term) { return first_term + term_shift; });
+        shift_scratch_points(std::span(to.dest).subspan(first_dest), old.scratch_start, scratch_shift);
+        shift_scratch_points(std::span(to.src).subspan(first_src), old.scratch_start, scratch_shift);
+      }
     }
   };
   // A scratch point is filled with the first group that reads it.
   std::vector<std::uint8_t> scratch_group;
   for (std::size_t s = 0; s + 1 < plan.block_row_begin.size(); ++s) {
     mark_block_begin();
-    if (!regroup_reused && plan.reused_from[s] >= 0) {
+    if (plan.reused_from[s] >= 0) {
       take_old_entries(s, static_cast<std::size_t>(plan.reused_from[s]));
       continue;
     }
@@ -1238,58 +1227,6 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan, const GhostPlan* previ
     close_runs();
   }
   mark_block_begin();
-  // The weighted rows copied out with their terms, in their lists' order (GhostPlan::PackedRows):
-  // a reused block's as one range of the old plan's (its rows address the same points but for
-  // its scratch points, which moved: no other block's rows read them), the others row by row.
-  const std::size_t blocks = plan.block_row_begin.size() - 1;
-  for (std::size_t list = 0; list < plan.packed.size(); ++list)
-    for (std::size_t kind = 0; kind < 3; ++kind) {
-      auto& to = plan.packed[list][kind];
-      to.dest.clear();
-      to.src.clear();
-      to.weight.clear();
-      to.begin.assign(1, 0);
-      const auto& rows = kind == 0 ? plan.sum_rows[list] : plan.derived_rows[list][kind - 1];
-      auto append_rows = [&](std::size_t first, std::size_t last) {
-        for (std::size_t r = first; r < last; ++r) {
-          const auto k = static_cast<std::size_t>(rows[r]);
-          const auto t0 = static_cast<std::ptrdiff_t>(plan.local_begin[k]), t1 = static_cast<std::ptrdiff_t>(plan.local_begin[k + 1]);
-          to.dest.push_back(plan.dest[k]);
-          to.src.insert(to.src.end(), plan.local_src.begin() + t0, plan.local_src.begin() + t1);
-          to.weight.insert(to.weight.end(), plan.local_weight.begin() + t0, plan.local_weight.begin() + t1);
-          to.begin.push_back(static_cast<std::int32_t>(to.src.size()));
-        }
-      };
-      if (regroup_reused || list >= plan.block_group_begin.size()) {
-        append_rows(0, rows.size());
-        continue;
-      }
-      const auto& now = plan.block_group_begin[list][GhostPlan::kPackedGroup[kind]];
-      for (std::size_t b = 0; b < blocks; ++b) {
-        const std::int32_t o = plan.reused_from[b];
-        if (o < 0) {
-          append_rows(static_cast<std::size_t>(now[b]), static_cast<std::size_t>(now[b + 1]));
-          continue;
-        }
-        const auto ou = static_cast<std::size_t>(o);
-        const auto& from = previous->packed[list][kind];
-        const auto& before = previous->block_group_begin[list][GhostPlan::kPackedGroup[kind]];
-        const auto r0 = before[ou], r1 = before[ou + 1];
-        const auto t0 = from.begin[static_cast<std::size_t>(r0)], t1 = from.begin[static_cast<std::size_t>(r1)];
-        const std::size_t first_dest = to.dest.size(), first_src = to.src.size();
-        to.dest.insert(to.dest.end(), from.dest.begin() + r0, from.dest.begin() + r1);
-        to.src.insert(to.src.end(), from.src.begin() + t0, from.src.begin() + t1);
-        to.weight.insert(to.weight.end(), from.weight.begin() + t0, from.weight.begin() + t1);
-        const auto term_shift = static_cast<std::int32_t>(first_src) - t0;
-        const std::size_t first_begin = to.begin.size();
-        to.begin.resize(first_begin + static_cast<std::size_t>(r1 - r0));
-        std::transform(from.begin.begin() + r0 + 1, from.begin.begin() + r1 + 1, to.begin.begin() + static_cast<std::ptrdiff_t>(first_begin),
-                       [term_shift](std::int32_t begin) { return begin + term_shift; });
-        const std::int64_t scratch_shift = plan.scratch_of(b) - previous->scratch_of(ou);
-        shift_scratch_points(std::span(to.dest).subspan(first_dest), previous->scratch_start, scratch_shift);
-        shift_scratch_points(std::span(to.src).subspan(first_src), previous->scratch_start, scratch_shift);
-      }
-    }
   order_fill_while_writing(plan);
 }
 
@@ -1331,7 +1268,9 @@ void AdaptiveGrid<Dim>::set_stencil_reach(int along_axis, int across_two_axes) {
   const std::array<int, 3> reach{along_axis, across_two_axes, 0};
   if (stencil_reach_ == reach) return;
   stencil_reach_ = reach;
-  if (plan_) group_ghost_rows(*plan_, nullptr);
+  // Grouped afresh from every block's rows, which only a plan built afresh holds (blocks reused
+  // by an adaptation keep their grouped entries alone).
+  if (plan_) build_ghost_plan();
 }
 
 namespace {
@@ -1553,39 +1492,37 @@ GhostKind AdaptiveGrid<Dim>::ghost_kind(std::size_t slot, std::ptrdiff_t array_i
 
 template <int Dim>
 std::array<std::int64_t, 4> AdaptiveGrid<Dim>::ghost_counts() const {
-  // The rows address points by page, plan.kind by slot.
+  // Every point of a block's array is a ghost of some kind but its interior points, which are
+  // marked kSameLevel.
   std::array<std::int64_t, 4> n{};
-  const GhostPlan& plan = *plan_;
-  for (std::size_t s = 0; s < local_blocks(); ++s) {
-    const std::uint8_t* kind = plan.kind.data() + s * block_volume_;
-    for (auto k = static_cast<std::size_t>(plan.block_row_begin[s]); k < static_cast<std::size_t>(plan.block_row_begin[s + 1]); ++k)
-      if (plan.dest[k] < plan.scratch_start) ++n[kind[static_cast<std::size_t>(plan.dest[k]) - block_base(s)]];
-    for (auto e = plan.block_segment_begin[s]; e < plan.block_segment_begin[s + 1]; ++e) {
-      const auto& segment = plan.segments[static_cast<std::size_t>(e)];
-      for (std::int32_t k = 0; k < segment.length; ++k) ++n[kind[static_cast<std::size_t>(segment.dest + k) - block_base(s)]];
-    }
-  }
+  for (const std::uint8_t kind : plan_->kind) ++n[kind];
+  n[static_cast<std::size_t>(GhostKind::kSameLevel)] -= static_cast<std::int64_t>(local_blocks() * interior_points_);
   return n;
 }
 
 template <int Dim>
 GhostPlanStats AdaptiveGrid<Dim>::ghost_plan_stats() const {
+  // From the grouped rows, which every block has (a block reused by an adaptation has no rows):
+  // lists 0 and 1 hold each ghost and scratch point once.
   const GhostPlan& plan = *plan_;
   GhostPlanStats stats;
-  stats.rows = static_cast<std::int64_t>(plan.dest.size());
-  for (std::size_t k = 0; k < plan.dest.size(); ++k) {
-    const int local = plan.local_begin[k + 1] - plan.local_begin[k];
-    const int terms = local + plan.remote_begin[k + 1] - plan.remote_begin[k];
-    stats.scratch_points += plan.dest[k] >= plan.scratch_start ? 1 : 0;
-    if (plan.is_copy(k)) ++stats.copies;
-    else stats.weighted_terms += terms;
+  auto weighted_row = [&](std::int64_t dest, int terms) {
+    ++stats.rows;
+    stats.scratch_points += dest >= plan.scratch_start ? 1 : 0;
+    stats.weighted_terms += terms;
     stats.longest_row = std::max(stats.longest_row, terms);
+  };
+  for (std::size_t list = 0; list < 2; ++list) {
+    for (const auto& run : plan.copy_runs[list]) stats.copies += static_cast<std::int64_t>(run.length) * run.rows;
+    for (const auto& rows : plan.packed[list])
+      for (std::size_t r = 0; r < rows.rows(); ++r) weighted_row(rows.dest[r], rows.begin[r + 1] - rows.begin[r]);
+    for (const std::int32_t row : plan.remote_rows[list]) {
+      const auto k = static_cast<std::size_t>(row);
+      weighted_row(plan.dest[k], plan.local_begin[k + 1] - plan.local_begin[k] + plan.remote_begin[k + 1] - plan.remote_begin[k]);
+    }
   }
-  for (const auto& segment : plan.segments) {  // rows of one term each
-    stats.rows += segment.length;
-    stats.copies += segment.length;
-    stats.longest_row = std::max(stats.longest_row, 1);
-  }
+  stats.rows += stats.copies;
+  if (stats.copies > 0) stats.longest_row = std::max(stats.longest_row, 1);
   stats.copy_rectangles = static_cast<std::int64_t>(plan.copy_runs[0].size() + plan.copy_runs[1].size());
   return stats;
 }
