@@ -1153,30 +1153,40 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan, const GhostPlan* previ
       begin[2].push_back(static_cast<std::int32_t>(plan.remote_rows[list].size()));
     }
   };
-  // A reused block's entries in lists 0 and 1, from the old plan (slot o): its copies as they
-  // were (they read and write block points, addressed by pages, which the block and its sources
-  // kept); its packed rows as one range per kind, only their references to its scratch points
-  // moved (no other block's rows read them). It has no remote rows and none in list 2.
-  auto take_old_entries = [&](std::size_t s, std::size_t o) {
+  // The entries in lists 0 and 1 of `count` reused blocks from slot s on, which were
+  // consecutive in the old plan from slot o on, taken from it as one range per list and kind
+  // (a range per block was most of a rebuild around a moving body): their copies as they were
+  // (they read and write block points, addressed by pages, which the blocks and their sources
+  // kept); their packed rows with only their references to their own scratch points moved (no
+  // other block's rows read them), which is one shift for them all (they hold the same scratch
+  // points in both plans). They have no remote rows and none in list 2.
+  auto take_old_entries = [&](std::size_t s, std::size_t o, std::size_t count) {
     const GhostPlan& old = *previous;
     const std::int64_t scratch_shift = plan.scratch_of(s) - old.scratch_of(o);
     for (std::size_t list = 0; list < plan.block_group_begin.size(); ++list) {
-      const auto& begin = old.block_group_begin[list];
-      const auto& runs = old.copy_runs[list];
-      plan.copy_runs[list].insert(plan.copy_runs[list].end(), runs.begin() + begin[0][o], runs.begin() + begin[0][o + 1]);
+      const auto& before = old.block_group_begin[list];
+      auto& now = plan.block_group_begin[list];
+      // Each block's entries begin where the old ones did, moved with the first.
+      auto begins = [&](std::size_t group, std::size_t size_now) {
+        const auto shift = static_cast<std::int32_t>(size_now) - before[group][o];
+        std::transform(before[group].begin() + static_cast<std::ptrdiff_t>(o), before[group].begin() + static_cast<std::ptrdiff_t>(o + count),
+                       std::back_inserter(now[group]), [shift](std::int32_t first) { return first + shift; });
+        return std::pair(before[group][o], before[group][o + count]);
+      };
+      const auto [c0, c1] = begins(0, plan.copy_runs[list].size());
+      plan.copy_runs[list].insert(plan.copy_runs[list].end(), old.copy_runs[list].begin() + c0, old.copy_runs[list].begin() + c1);
+      now[2].insert(now[2].end(), count, static_cast<std::int32_t>(plan.remote_rows[list].size()));
       for (std::size_t kind = 0; kind < 3; ++kind) {
         const auto& from = old.packed[list][kind];
         auto& to = plan.packed[list][kind];
-        const auto r0 = begin[GhostPlan::kPackedGroup[kind]][o], r1 = begin[GhostPlan::kPackedGroup[kind]][o + 1];
+        const auto [r0, r1] = begins(GhostPlan::kPackedGroup[kind], to.rows());
         const auto t0 = from.begin[static_cast<std::size_t>(r0)], t1 = from.begin[static_cast<std::size_t>(r1)];
         const std::size_t first_dest = to.dest.size(), first_src = to.src.size();
         to.dest.insert(to.dest.end(), from.dest.begin() + r0, from.dest.begin() + r1);
         to.src.insert(to.src.end(), from.src.begin() + t0, from.src.begin() + t1);
         to.weight.insert(to.weight.end(), from.weight.begin() + t0, from.weight.begin() + t1);
         const auto term_shift = static_cast<std::int32_t>(first_src) - t0;
-        const std::size_t first_begin = to.begin.size();
-        to.begin.resize(first_begin + static_cast<std::size_t>(r1 - r0));
-        std::transform(from.begin.begin() + r0 + 1, from.begin.begin() + r1 + 1, to.begin.begin() + static_cast<std::ptrdiff_t>(first_begin),
+        std::transform(from.begin.begin() + r0 + 1, from.begin.begin() + r1 + 1, std::back_inserter(to.begin),
                        [term_shift](std::int32_t first_term) { return first_term + term_shift; });
         shift_scratch_points(std::span(to.dest).subspan(first_dest), old.scratch_start, scratch_shift);
         shift_scratch_points(std::span(to.src).subspan(first_src), old.scratch_start, scratch_shift);
@@ -1185,12 +1195,16 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan, const GhostPlan* previ
   };
   // A scratch point is filled with the first group that reads it.
   std::vector<std::uint8_t> scratch_group;
-  for (std::size_t s = 0; s + 1 < plan.block_row_begin.size(); ++s) {
-    mark_block_begin();
-    if (plan.reused_from[s] >= 0) {
-      take_old_entries(s, static_cast<std::size_t>(plan.reused_from[s]));
+  const std::size_t blocks = plan.block_row_begin.size() - 1;
+  for (std::size_t s = 0; s < blocks; ++s) {
+    if (const std::int32_t o = plan.reused_from[s]; o >= 0) {
+      std::size_t last = s;  // the run of blocks reused from consecutive old slots
+      while (last + 1 < blocks && plan.reused_from[last + 1] == o + static_cast<std::int32_t>(last + 1 - s)) ++last;
+      take_old_entries(s, static_cast<std::size_t>(o), last + 1 - s);
+      s = last;
       continue;
     }
+    mark_block_begin();
     const auto base = static_cast<std::int64_t>(block_base(s));
     const bool rebuilt = plan.block_rebuilt[s] != 0;
     const auto first_row = static_cast<std::size_t>(plan.block_row_begin[s]);
