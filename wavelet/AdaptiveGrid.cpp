@@ -2111,14 +2111,13 @@ AdaptCounts AdaptiveGrid<Dim>::adapt_with_tags(std::span<const AdaptTag> tags) {
   // Pages out of slot order cost the passes that go through the blocks in slot order (a settled
   // cycle's tests, the fills) their reads in sequence, where the arrays outgrow the caches: once
   // more than an eighth of the blocks start a new run of pages, and the arrays hold more than
-  // 1 MB, they are written again in slot order, ghosts included, and the ghost plan is built
-  // afresh (a fresh plan's rows are those a reused one would have). Around the two moving
-  // cylinders that is one changing cycle in about twenty.
-  constexpr std::size_t kInCache = std::size_t{1} << 20;
+  // GridConfig::pages_in_order_above_bytes, they are written again in slot order, ghosts
+  // included, and the ghost plan is built afresh (a fresh plan's rows are those a reused one
+  // would have). Around the two moving cylinders that is one changing cycle in about twenty.
   std::size_t breaks = 0;
   for (std::size_t s = 1; s < page_of_.size(); ++s) breaks += page_of_[s] != page_of_[s - 1] + 1 ? 1 : 0;
   if (config_.keep_pages_in_order && breaks * 8 > page_of_.size() &&
-      pages_ * block_volume_ * data_.size() * sizeof(double) > kInCache) {
+      pages_ * block_volume_ * data_.size() * sizeof(double) > config_.pages_in_order_above_bytes) {
     std::vector<std::vector<double>> in_order(data_.size());
     for (std::size_t f = 0; f < data_.size(); ++f) {
       in_order[f].reserve(page_of_.size() * block_volume_);

@@ -518,6 +518,7 @@ template <int Dim>
 void reused_ghost_rows_match_a_fresh_plan(bool periodic, int reach = 0, bool keep_pages_in_order = false) {
   auto c = front_grid<Dim>(periodic);
   c.keep_pages_in_order = keep_pages_in_order;  // off: every cycle reuses what it can
+  c.pages_in_order_above_bytes = 0;               // on: whatever the size of this small grid
   gw::AdaptiveGrid<Dim> grid(c);
   if (reach > 0) grid.set_stencil_reach(reach, 1);
   const auto th = front_threshold();
