@@ -124,7 +124,8 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   std::vector<std::uint64_t> block_curve;
   std::vector<std::int32_t> block_dependencies;
   // Per local term, the page of the block it reads (the plan addresses points by page, which a
-  // block keeps while it stays, so a reused row needs no renumbering), or kScratchPage.
+  // block keeps while it stays, so a reused block's entries need no renumbering), or
+  // kScratchPage.
   std::vector<std::int32_t> local_src_page;
   static constexpr std::int32_t kScratchPage = -1;
   /// Whether row k copies one value: one local term of weight 1, nothing remote.

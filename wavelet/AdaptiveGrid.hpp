@@ -297,10 +297,10 @@ class AdaptiveGrid {
   /// other ranks' rows read packed and sent (requests counts on).
   std::size_t receive_ghost_values(GhostPlan& plan);
   void send_ghost_values(GhostPlan& plan, std::size_t& requests);
-  /// Sorts the plan's rows into copy runs, sums and remote rows, per list: 0, within the
-  /// stencil reach, 1, the others, and kRebuiltRows, the rows of blocks built afresh. With the
-  /// plan its blocks were reused from, a reused block's entries are that plan's (its rows
-  /// renumbered, its copies as they were).
+  /// Sorts the plan's rows and segments into copy runs, packed sums and remote rows, per list:
+  /// 0, within the stencil reach, 1, the others, and kRebuiltRows, the rows of blocks built
+  /// afresh. With the plan its blocks were reused from (grouped for the same reach), a reused
+  /// block, which has no rows, takes that plan's entries (its packed rows' scratch points moved).
   void group_ghost_rows(GhostPlan& plan, const GhostPlan* previous) const;
   /// The blocks' order for write_and_fill_stencil_ghosts() (GhostPlan::fill_when_written).
   void order_fill_while_writing(GhostPlan& plan) const;
@@ -309,8 +309,8 @@ class AdaptiveGrid {
   /// Block slot s in page s, no page free (a fresh layout, or the arrays written in slot order).
   void pages_in_slot_order();
   /// Builds the ghost plan of the current grid. With the plan of the grid before an adaptation
-  /// and that grid's local keys, the rows of blocks whose neighbourhood did not change are
-  /// copied instead of resolved again.
+  /// and that grid's local keys, blocks whose neighbourhood did not change get no rows: they
+  /// keep that plan's grouped entries (group_ghost_rows) instead of being resolved again.
   void build_ghost_plan(std::unique_ptr<GhostPlan> previous = nullptr, std::span<const Key> previous_keys = {});
   void refresh_partition();
   /// Per axis, whether the block touches the low / high edge of a bounded (not periodic) axis.

@@ -511,9 +511,10 @@ TEST(AdaptiveGrid, FillingWhileWritingIsWritingThenFilling3D) { filling_while_wr
 // from the previous plan, the others resolved again: after every cycle of a moving front the
 // ghosts must equal, bitwise, those of a plan built from scratch for the same leaves. On two
 // ranks, blocks that read another rank are always rebuilt, and repartitioning moves blocks.
-// A reused block's copy runs and sums are taken from the old plan's grouping, renumbered
-// (group_ghost_rows); with a stencil reach set (reach > 0) they fall in two lists, both filled,
-// and the reach changes every cycle.
+// A reused block's copy runs and packed sums are taken from the old plan's grouping, its
+// scratch points moved (group_ghost_rows); with a stencil reach set (reach > 0) they fall in two
+// lists, both filled, and the reach changes every cycle (the plan is then built afresh, and
+// reused in the next cycle).
 template <int Dim>
 void reused_ghost_rows_match_a_fresh_plan(bool periodic, int reach = 0, bool keep_pages_in_order = false) {
   auto c = front_grid<Dim>(periodic);
