@@ -156,8 +156,9 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   // The ghosts copied from a same-level leaf of this rank (most of them), which have no rows:
   // one segment (a CopyRun of one row) per line of the block's array and region around it,
   // `length` consecutive points of that leaf, in array order; block `slot`'s from
-  // block_segment_begin[slot]. The grouping splits each segment by reach group instead of
-  // testing its points one by one as rows (they were two thirds of a rebuild's rows).
+  // block_segment_begin[slot] (none for a block reused from the previous plan, which, as for its
+  // rows, keeps only its grouped entries). The grouping splits each segment by reach group
+  // instead of testing its points one by one as rows (they were two thirds of a rebuild's rows).
   std::vector<CopyRun> segments;
   std::vector<std::int32_t> block_segment_begin;
   std::array<std::vector<std::int32_t>, 3> remote_rows;  // row numbers
