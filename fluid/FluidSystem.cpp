@@ -9,6 +9,7 @@
 #include <limits>
 #include <memory>
 #include <numbers>
+#include <span>
 
 #include "core/Error.hpp"
 #include "core/Mpi.hpp"
@@ -361,7 +362,9 @@ class FluidModel : public io::System {
   /// Weight of the characteristic terms at a point of mask chi.
   double characteristic_weight(double chi) const { return std::min(1.0, penalization_.characteristic_gain * chi); }
   /// The largest body mask at x (chi, body, inward normal, body velocity); chi = 0 outside all.
-  MaskedPoint mask_at(const std::array<double, Dim>& x, double t) const;
+  /// The mask at x of the bodies listed (indices, ascending; all of them when empty): the one
+  /// with the largest force weight, the first of equals.
+  MaskedPoint mask_at(const std::array<double, Dim>& x, double t, std::span<const int> bodies = {}) const;
   bool near_interface(const std::array<double, Dim>& lo, const std::array<double, Dim>& hi, double t) const;
   /// Whether a block meets a body's control-volume box or its ramp (forced to the finest level).
   bool in_control_volume(const std::array<double, Dim>& lo, const std::array<double, Dim>& hi, double t) const;
@@ -913,11 +916,14 @@ void FluidModel<Dim>::compute_primitives(std::size_t slot) {
 }
 
 template <int Dim>
-typename FluidModel<Dim>::MaskedPoint FluidModel<Dim>::mask_at(const std::array<double, Dim>& x, double t) const {
+typename FluidModel<Dim>::MaskedPoint FluidModel<Dim>::mask_at(const std::array<double, Dim>& x, double t,
+                                                               std::span<const int> bodies) const {
   MaskedPoint best;
   std::array<double, 3> x3{};
   for (int a = 0; a < Dim; ++a) x3[static_cast<std::size_t>(a)] = x[static_cast<std::size_t>(a)];
-  for (std::size_t k = 0; k < penalization_.bodies.size(); ++k) {
+  const std::size_t count = bodies.empty() ? penalization_.bodies.size() : bodies.size();
+  for (std::size_t n = 0; n < count; ++n) {
+    const std::size_t k = bodies.empty() ? n : static_cast<std::size_t>(bodies[n]);
     const Body& body = penalization_.bodies[k];
     std::array<double, 3> inward{};
     const double d = body.signed_distance(x3, t, inward);
@@ -1011,8 +1017,10 @@ void FluidModel<Dim>::update_masks(double t) {
     return;
   masks_steady_layout_ = steady ? grid_->layout_serial() : 0;
   const int bs = config_.block_size;
-  masked_.assign(grid_->local_blocks(), {});
+  masked_.resize(grid_->local_blocks());  // each block's list keeps its storage
+  std::vector<int> touching;  // the bodies whose mask reaches the block
   for (std::size_t s = 0; s < grid_->local_blocks(); ++s) {
+    masked_[s].clear();
     const auto x0 = grid_->origin(grid_->key(s));
     const auto h = grid_->spacing(grid_->key(s).level);
     std::array<double, 3> lo3{}, hi3{};
@@ -1021,9 +1029,13 @@ void FluidModel<Dim>::update_masks(double t) {
       lo3[au] = x0[au];
       hi3[au] = x0[au] + (bs - 1) * h[au];
     }
-    bool touched = false;
-    for (const Body& body : penalization_.bodies) touched = touched || body.distance_bounds(lo3, hi3, t)[1] > mask_depth_ - 3 * mask_width_;
-    if (!touched) continue;
+    // A body whose signed distance stays at or below mask_depth - 3 w over the block has a force
+    // weight of exactly 0 at every point of it (smoothed_mask is 0 from -w down), which
+    // mask_at would pass over: only the others are evaluated.
+    touching.clear();
+    for (std::size_t k = 0; k < penalization_.bodies.size(); ++k)
+      if (penalization_.bodies[k].distance_bounds(lo3, hi3, t)[1] > mask_depth_ - 3 * mask_width_) touching.push_back(static_cast<int>(k));
+    if (touching.empty()) continue;
     for (std::size_t p = 0; p < interior_at_.size(); ++p) {
       std::array<double, Dim> x{};
       std::size_t rest = p;
@@ -1032,7 +1044,7 @@ void FluidModel<Dim>::update_masks(double t) {
         x[au] = x0[au] + static_cast<double>(rest % static_cast<std::size_t>(bs)) * h[au];
         rest /= static_cast<std::size_t>(bs);
       }
-      auto m = mask_at(x, t);
+      auto m = mask_at(x, t, touching);
       if (m.chi_force <= 0) continue;
       m.point = p;
       masked_[s].push_back(m);
