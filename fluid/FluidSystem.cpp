@@ -9,6 +9,7 @@
 #include <limits>
 #include <memory>
 #include <numbers>
+#include <optional>
 #include <span>
 
 #include "core/Error.hpp"
@@ -1018,23 +1019,51 @@ void FluidModel<Dim>::update_masks(double t) {
   masks_steady_layout_ = steady ? grid_->layout_serial() : 0;
   const int bs = config_.block_size;
   masked_.resize(grid_->local_blocks());  // each block's list keeps its storage
-  std::vector<int> touching;  // the bodies whose mask reaches the block
+  // A body whose signed distance stays at or below mask_depth - 3 w over a box has a force
+  // weight of exactly 0 at every point of it (smoothed_mask is 0 from -w down), which mask_at
+  // would pass over: only the others are evaluated. Bodies are first sorted out by cell, the
+  // blocks' ancestors 3 levels above the finest (8 x 8 finest blocks; a block's descendants
+  // are consecutive along the curve, so each cell is tested once), and a block tests only its
+  // cell's bodies: testing every body for every block made the masks quadratic in the bodies.
+  const double reach = mask_depth_ - 3 * mask_width_;
+  auto reaching = [&](std::span<const int> candidates, const std::array<double, Dim>& lo, const std::array<double, Dim>& hi,
+                      std::vector<int>& out) {
+    std::array<double, 3> lo3{}, hi3{};
+    std::copy(lo.begin(), lo.end(), lo3.begin());
+    std::copy(hi.begin(), hi.end(), hi3.begin());
+    out.clear();
+    const std::size_t count = candidates.empty() ? penalization_.bodies.size() : candidates.size();
+    for (std::size_t n = 0; n < count; ++n) {
+      const int k = candidates.empty() ? static_cast<int>(n) : candidates[n];
+      if (penalization_.bodies[static_cast<std::size_t>(k)].distance_bounds(lo3, hi3, t)[1] > reach) out.push_back(k);
+    }
+  };
+  const int cell_level = std::max(0, config_.max_level - 3);
+  std::optional<wavelet::BlockKey<Dim>> cell;
+  std::vector<int> in_cell, touching;  // the bodies reaching the cell, the block
   for (std::size_t s = 0; s < grid_->local_blocks(); ++s) {
     masked_[s].clear();
-    const auto x0 = grid_->origin(grid_->key(s));
-    const auto h = grid_->spacing(grid_->key(s).level);
-    std::array<double, 3> lo3{}, hi3{};
-    for (int a = 0; a < Dim; ++a) {
-      const auto au = static_cast<std::size_t>(a);
-      lo3[au] = x0[au];
-      hi3[au] = x0[au] + (bs - 1) * h[au];
+    const auto key = grid_->key(s);
+    const auto x0 = grid_->origin(key);
+    const auto h = grid_->spacing(key.level);
+    std::array<double, Dim> hi{};
+    for (std::size_t a = 0; a < static_cast<std::size_t>(Dim); ++a) hi[a] = x0[a] + (bs - 1) * h[a];
+    if (key.level >= cell_level) {
+      auto ancestor = key;
+      while (ancestor.level > cell_level) ancestor = ancestor.parent();
+      if (ancestor != cell) {
+        cell = ancestor;
+        const auto cell_lo = grid_->origin(ancestor);
+        const auto cell_h = grid_->spacing(ancestor.level);
+        std::array<double, Dim> cell_hi{};
+        for (std::size_t a = 0; a < static_cast<std::size_t>(Dim); ++a) cell_hi[a] = cell_lo[a] + bs * cell_h[a];
+        reaching({}, cell_lo, cell_hi, in_cell);
+      }
+      if (in_cell.empty()) continue;
+      reaching(in_cell, x0, hi, touching);
+    } else {
+      reaching({}, x0, hi, touching);
     }
-    // A body whose signed distance stays at or below mask_depth - 3 w over the block has a force
-    // weight of exactly 0 at every point of it (smoothed_mask is 0 from -w down), which
-    // mask_at would pass over: only the others are evaluated.
-    touching.clear();
-    for (std::size_t k = 0; k < penalization_.bodies.size(); ++k)
-      if (penalization_.bodies[k].distance_bounds(lo3, hi3, t)[1] > mask_depth_ - 3 * mask_width_) touching.push_back(static_cast<int>(k));
     if (touching.empty()) continue;
     for (std::size_t p = 0; p < interior_at_.size(); ++p) {
       std::array<double, Dim> x{};
