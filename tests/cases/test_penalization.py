@@ -250,6 +250,7 @@ def penalized_masks_of_many_bodies():
     # what every body gives. Their bands do not overlap, so chi at every point is the smoothed
     # step of its nearest surface: 0 below -w, 1 above w, 1/2 (1 + s + sin(pi s) / pi) between,
     # s = (d - depth) / w, d the distance inside the surface, w and depth in finest spacings h.
+    # The forced region (sorted out per cell too) keeps every band at the finest level.
     with open(case("two_cylinders.toml"), "rb") as f:
         scene = f.read().decode()
     h, width, depth, radius, t_end = 1 / 64, 1.5, 1.0, 0.25, 0.003
@@ -263,7 +264,7 @@ def penalized_masks_of_many_bodies():
         f.write(text)
     grainwave("run", path, "--set", f"run.t_end={t_end}", "--set", f"output.interval={t_end}", "--out", out, check=0)
     t = summary(out)["t_final"]
-    x, y, chi = read_points(out, "chi")
+    x, y, chi, level = read_points(out, "chi", "level")
     d = np.full(x.shape, -np.inf)
     for (cx, cy), speed in bodies:
         d = np.maximum(d, radius - np.hypot(x - (cx + speed * t), y - cy))
@@ -273,6 +274,9 @@ def penalized_masks_of_many_bodies():
     expect(inside > 0 and np.count_nonzero((chi > 0) & (chi < 1)) > 0, f"{inside} points inside the nine bodies, some in their bands")
     error = float(np.max(np.abs(chi - expected)))
     expect(error <= 1e-9, f"chi at every point that of its nearest cylinder (largest difference {error:.2e} <= 1e-9)")
+    band = (chi > 0) & (chi < 1)
+    finest = int(np.count_nonzero(level[band] == 6))
+    expect(finest == int(np.count_nonzero(band)), f"the bands' {finest} of {np.count_nonzero(band)} points at the finest level")
 
 
 def penalized_two_cylinders():
