@@ -660,9 +660,9 @@ void AdaptiveGrid<Dim>::build_ghost_plan(std::unique_ptr<GhostPlan> previous, st
   auto reusable = [&](std::size_t slot) -> std::optional<std::size_t> {
     if (!reused || slot_before[slot] < 0) return std::nullopt;
     const auto o = static_cast<std::size_t>(slot_before[slot]);
-    if (previous->block_has_remote[o]) return std::nullopt;
-    for (auto d = previous->block_dependency_begin[o]; d < previous->block_dependency_begin[o + 1]; ++d) {
-      const std::int32_t read = previous->block_dependencies[static_cast<std::size_t>(d)];
+    if (reused->block_has_remote[o]) return std::nullopt;
+    for (auto d = reused->block_dependency_begin[o]; d < reused->block_dependency_begin[o + 1]; ++d) {
+      const std::int32_t read = reused->block_dependencies[static_cast<std::size_t>(d)];
       if (read < 0 || slot_now[static_cast<std::size_t>(read)] < 0) return std::nullopt;
     }
     return o;
@@ -1540,6 +1540,7 @@ GhostPlanStats AdaptiveGrid<Dim>::ghost_plan_stats() const {
   stats.rows += stats.copies;
   if (stats.copies > 0) stats.longest_row = std::max(stats.longest_row, 1);
   stats.copy_rectangles = static_cast<std::int64_t>(plan.copy_runs[0].size() + plan.copy_runs[1].size());
+  stats.reused_blocks = std::ranges::count_if(plan.reused_from, [](std::int32_t o) { return o >= 0; });
   return stats;
 }
 

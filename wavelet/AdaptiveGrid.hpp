@@ -151,6 +151,9 @@ struct GhostPlanStats {
   /// Rectangles the copies are grouped into (a fill's copy loop runs once per rectangle), over
   /// both reach groups; a copy with a remote source is a row of its own instead.
   std::int64_t copy_rectangles = 0;
+  /// Blocks whose entries the last rebuild took from the plan before it (unchanged blocks around
+  /// unchanged leaves, after an adaptation) instead of resolving their ghosts again.
+  std::int64_t reused_blocks = 0;
 };
 
 template <int Dim>

@@ -514,9 +514,9 @@ TEST(AdaptiveGrid, FillingWhileWritingIsWritingThenFilling3D) { filling_while_wr
 // A reused block's copy runs and packed sums are taken from the old plan's grouping, its
 // scratch points moved (group_ghost_rows); with a stencil reach set (reach > 0) they fall in two
 // lists, both filled, and the reach changes every cycle (the plan is then built afresh, and
-// reused in the next cycle).
+// reused by the next adaptation). `reused`: how many blocks the rebuilds reused, over all ranks.
 template <int Dim>
-void reused_ghost_rows_match_a_fresh_plan(bool periodic, int reach = 0, bool keep_pages_in_order = false) {
+void reused_ghost_rows_match_a_fresh_plan(std::int64_t& reused, bool periodic, int reach = 0, bool keep_pages_in_order = false) {
   auto c = front_grid<Dim>(periodic);
   c.keep_pages_in_order = keep_pages_in_order;  // off: every cycle reuses what it can
   c.pages_in_order_above_bytes = 0;               // on: whatever the size of this small grid
@@ -524,16 +524,18 @@ void reused_ghost_rows_match_a_fresh_plan(bool periodic, int reach = 0, bool kee
   if (reach > 0) grid.set_stencil_reach(reach, 1);
   const auto th = front_threshold();
   std::int64_t checked = 0;
+  reused = 0;
   for (int cycle = 0; cycle < 6; ++cycle) {
     const auto field = moving_front<Dim>(0.06 * cycle);
     grid.sample(field);
     grid.fill_ghosts();
     grid.adapt(th, gw::AdaptPass::kRefine);
+    reused += grid.ghost_plan_stats().reused_blocks;
     grid.sample(field);
     grid.fill_ghosts();
     grid.adapt(th, gw::AdaptPass::kCoarsen);
-    // A new stencil reach groups the plan again from its rows, those the adaptation copied for
-    // the blocks it reused (their scratch points moved) as well as the rebuilt ones.
+    reused += grid.ghost_plan_stats().reused_blocks;
+    // A new stencil reach: the plan is built afresh, and the next adaptation reuses from it.
     if (reach > 0) grid.set_stencil_reach(cycle % 2 == 0 ? reach - 1 : reach, 1);
     grid.sample(field);
     grid.fill_ghosts();
@@ -556,14 +558,27 @@ void reused_ghost_rows_match_a_fresh_plan(bool periodic, int reach = 0, bool kee
       }
   }
   EXPECT_GT(global_sum(checked), 0);
+  reused = global_sum(reused);
 }
 TEST(AdaptiveGrid, ReusedGhostRowsMatchAFreshPlan2D) {
-  reused_ghost_rows_match_a_fresh_plan<2>(true);
-  reused_ghost_rows_match_a_fresh_plan<2>(false);
-  reused_ghost_rows_match_a_fresh_plan<2>(true, 2);
-  reused_ghost_rows_match_a_fresh_plan<2>(true, 2, true);  // the pages put in order when scattered
+  // Each run must have reused blocks, or it compared fresh plans with fresh plans.
+  std::int64_t reused = 0, kept_scattered = 0, put_in_order = 0;
+  for (const bool periodic : {true, false}) {
+    reused_ghost_rows_match_a_fresh_plan<2>(reused, periodic);
+    EXPECT_GT(reused, 0) << "periodic " << periodic;
+  }
+  reused_ghost_rows_match_a_fresh_plan<2>(kept_scattered, true, 2);
+  EXPECT_GT(kept_scattered, 0);
+  // The pages put in order when scattered: those rebuilds start afresh, so fewer blocks are
+  // reused than over the same cycles left scattered.
+  reused_ghost_rows_match_a_fresh_plan<2>(put_in_order, true, 2, true);
+  EXPECT_LT(put_in_order, kept_scattered);
 }
-TEST(AdaptiveGrid, ReusedGhostRowsMatchAFreshPlan3D) { reused_ghost_rows_match_a_fresh_plan<3>(false); }
+TEST(AdaptiveGrid, ReusedGhostRowsMatchAFreshPlan3D) {
+  std::int64_t reused = 0;
+  reused_ghost_rows_match_a_fresh_plan<3>(reused, false);
+  EXPECT_GT(reused, 0);
+}
 
 // An adaptation fills the ghosts of the blocks whose rows it built afresh, and keeps those of
 // the blocks whose rows it copied (they and every leaf they read are unchanged): after each
