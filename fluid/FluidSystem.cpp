@@ -6,9 +6,11 @@
 #include <bit>
 #include <cmath>
 #include <filesystem>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <numbers>
+#include <numeric>
 #include <optional>
 #include <span>
 #include <unordered_map>
@@ -348,6 +350,7 @@ class FluidModel : public io::System {
     std::array<double, Dim> inward{}, u0{};
   };
   PenalizationSettings penalization_;
+  std::vector<int> every_body_;  ///< 0, 1, ... one per body
   double eta_b_ = 0, eta_c_ = 0, mask_width_ = 0, mask_depth_ = 0, p_far_ = 0, rho_far_ = 1;
   std::array<double, Dim> free_stream_{};
   std::vector<std::vector<MaskedPoint>> masked_;  // per local block
@@ -364,9 +367,30 @@ class FluidModel : public io::System {
   /// Weight of the characteristic terms at a point of mask chi.
   double characteristic_weight(double chi) const { return std::min(1.0, penalization_.characteristic_gain * chi); }
   /// The largest body mask at x (chi, body, inward normal, body velocity; chi = 0 outside all)
-  /// of the bodies listed (indices, ascending; all of them when empty): the one with the largest
-  /// force weight, the first of equals.
-  MaskedPoint mask_at(const std::array<double, Dim>& x, double t, std::span<const int> bodies = {}) const;
+  /// of the bodies listed (indices, ascending): the one with the largest force weight, the first
+  /// of equals.
+  MaskedPoint mask_at(const std::array<double, Dim>& x, double t, std::span<const int> bodies) const;
+  /// Bodies sorted out per cell (a block three levels above the finest): those passing a test
+  /// on the cell's box, found the first time a box inside the cell is asked about. The test must
+  /// hold for a box wherever it holds for a smaller box inside it (every shape's distance bounds,
+  /// and a box's overlap, widen with the box), so that a cell's bodies include every body that
+  /// passes it on a box inside the cell. Testing every body for every block made the masks and
+  /// the forced region quadratic in the number of bodies.
+  class BodiesByCell {
+   public:
+    using Test = std::function<bool(const Body&, const std::array<double, Dim>&, const std::array<double, Dim>&)>;
+    BodiesByCell(const FluidModel& model, Test passes) : model_(model), passes_(std::move(passes)) {}
+    /// Candidates for a box: its cell's bodies, or every body for a box inside no one cell and
+    /// where there are few bodies (two cylinders: finding the cell cost a settled cycle 0.34 ->
+    /// 0.45 ms).
+    std::span<const int> near(const std::array<double, Dim>& lo, const std::array<double, Dim>& hi);
+
+   private:
+    static constexpr std::size_t kBodiesTestedDirectly = 8;
+    const FluidModel& model_;
+    Test passes_;
+    std::unordered_map<std::uint64_t, std::vector<int>> cells_;
+  };
   /// Whether a box meets a body's interface band, or (where those boxes stay refined) its
   /// control-volume box or that box's ramp: what forces a block to the finest level. Wherever it
   /// holds for a box it holds for any larger box (every shape's distance bounds widen with the
@@ -588,6 +612,8 @@ FluidModel<Dim>::FluidModel(const Scene& scene) {
     s.fail("block_size", e.what());
   }
   penalization_ = read_penalization(scene, Dim);
+  every_body_.resize(penalization_.bodies.size());
+  std::iota(every_body_.begin(), every_body_.end(), 0);
   // IMEX with nothing implicit would still run ARKODE's Newton iterations on a zero f_I each stage.
   if (imex_ && !penalized() && !viscous_implicit_)
     s.fail("time_integrator", "imex: nothing in this scene is implicit (no [[body]], viscous terms explicit); "
@@ -616,7 +642,7 @@ FluidModel<Dim>::FluidModel(const Scene& scene) {
   auto initial_state = [&](const auto& x, std::span<double> v) {
     auto w = initial_.at(x, 0.0);
     if (penalized()) {  // the gas inside the bodies starts at the body velocity
-      const auto m = mask_at(x, 0.0);
+      const auto m = mask_at(x, 0.0, every_body_);
       for (int a = 0; a < Dim; ++a) {
         auto& u = w.u[static_cast<std::size_t>(a)];
         u = (1 - m.chi) * u + m.chi * m.u0[static_cast<std::size_t>(a)];
@@ -925,9 +951,8 @@ typename FluidModel<Dim>::MaskedPoint FluidModel<Dim>::mask_at(const std::array<
   MaskedPoint best;
   std::array<double, 3> x3{};
   for (int a = 0; a < Dim; ++a) x3[static_cast<std::size_t>(a)] = x[static_cast<std::size_t>(a)];
-  const std::size_t count = bodies.empty() ? penalization_.bodies.size() : bodies.size();
-  for (std::size_t n = 0; n < count; ++n) {
-    const std::size_t k = bodies.empty() ? n : static_cast<std::size_t>(bodies[n]);
+  for (const int index : bodies) {
+    const auto k = static_cast<std::size_t>(index);
     const Body& body = penalization_.bodies[k];
     std::array<double, 3> inward{};
     const double d = body.signed_distance(x3, t, inward);
@@ -986,45 +1011,47 @@ wavelet::ForcedRegion<Dim> FluidModel<Dim>::forced_region(double t) const {
   // Blocks on a no-slip wall stay at the finest level: the boundary layer needs it, and the wall
   // point of a high edge (the last point, hi - h) would move if its block changed level.
   if (!penalized() && !no_slip_walls_) return {};
-  // The bodies forcing each cell (a block three levels above the finest, as in update_masks),
-  // found when a box inside it is first asked about: only they can force a box inside it
-  // (forces_finest). Testing every body for every leaf made the forced region quadratic in the
-  // bodies (sixty-four moving cylinders: adaptation 0.16 -> 0.115 s over 8 steps).
-  auto cells = std::make_shared<std::unordered_map<std::uint64_t, std::vector<int>>>();
+  // Only a cell's bodies can force a box inside it (forces_finest widens with the box):
+  // sixty-four moving cylinders, adaptation 0.16 -> 0.115 s over 8 steps.
+  auto cells = std::make_shared<BodiesByCell>(*this, [this, t](const Body& body, const auto& lo, const auto& hi) {
+    return forces_finest(body, lo, hi, t);
+  });
   return [this, t, cells](const std::array<double, Dim>& lo, const std::array<double, Dim>& hi) {
     if (no_slip_walls_ && touches_no_slip_wall(lo, hi)) return true;
-    if (!penalized()) return false;
-    const auto& bodies = penalization_.bodies;
-    auto forced_by = [&](const Body& body) { return forces_finest(body, lo, hi, t); };
-    // A few bodies are tested faster than a cell is found (two cylinders: 0.34 against 0.45 ms
-    // per settled cycle).
-    constexpr std::size_t kBodiesTestedDirectly = 8;
-    if (bodies.size() <= kBodiesTestedDirectly) return std::ranges::any_of(bodies, forced_by);
-    // The cell holding the box's centre, if it holds the whole box.
-    const int level = std::max(0, config_.max_level - 3);
-    std::array<std::uint32_t, Dim> coords{};
-    for (std::size_t a = 0; a < static_cast<std::size_t>(Dim); ++a) {
-      const auto along = static_cast<std::uint32_t>(config_.roots[a]) << level;
-      const double size = (config_.hi[a] - config_.lo[a]) / along;
-      const double at = std::floor((0.5 * (lo[a] + hi[a]) - config_.lo[a]) / size);
-      coords[a] = static_cast<std::uint32_t>(std::clamp(at, 0.0, static_cast<double>(along - 1)));
-    }
-    const auto cell = wavelet::BlockKey<Dim>::from_coords(level, coords);
-    const auto cell_lo = grid_->origin(cell);
-    const auto cell_h = grid_->spacing(level);
-    std::array<double, Dim> cell_hi{};
-    bool inside = true;
-    for (std::size_t a = 0; a < static_cast<std::size_t>(Dim); ++a) {
-      cell_hi[a] = cell_lo[a] + config_.block_size * cell_h[a];
-      inside = inside && lo[a] >= cell_lo[a] && hi[a] <= cell_hi[a];
-    }
-    if (!inside) return std::ranges::any_of(bodies, forced_by);
-    const auto [near, added] = cells->try_emplace(cell.morton);
-    if (added)
-      for (std::size_t k = 0; k < bodies.size(); ++k)
-        if (forces_finest(bodies[k], cell_lo, cell_hi, t)) near->second.push_back(static_cast<int>(k));
-    return std::ranges::any_of(near->second, [&](int k) { return forced_by(bodies[static_cast<std::size_t>(k)]); });
+    return penalized() && std::ranges::any_of(cells->near(lo, hi), [&](int k) {
+             return forces_finest(penalization_.bodies[static_cast<std::size_t>(k)], lo, hi, t);
+           });
   };
+}
+
+template <int Dim>
+std::span<const int> FluidModel<Dim>::BodiesByCell::near(const std::array<double, Dim>& lo, const std::array<double, Dim>& hi) {
+  const auto& m = model_;
+  if (m.every_body_.size() <= kBodiesTestedDirectly) return m.every_body_;
+  // The cell holding the box's centre, if it holds the whole box.
+  const int level = std::max(0, m.config_.max_level - 3);
+  std::array<std::uint32_t, Dim> coords{};
+  for (std::size_t a = 0; a < static_cast<std::size_t>(Dim); ++a) {
+    const auto along = static_cast<std::uint32_t>(m.config_.roots[a]) << level;
+    const double size = (m.config_.hi[a] - m.config_.lo[a]) / along;
+    const double at = std::floor((0.5 * (lo[a] + hi[a]) - m.config_.lo[a]) / size);
+    coords[a] = static_cast<std::uint32_t>(std::clamp(at, 0.0, static_cast<double>(along - 1)));
+  }
+  const auto cell = wavelet::BlockKey<Dim>::from_coords(level, coords);
+  const auto cell_lo = m.grid_->origin(cell);
+  const auto cell_h = m.grid_->spacing(level);
+  std::array<double, Dim> cell_hi{};
+  bool inside = true;
+  for (std::size_t a = 0; a < static_cast<std::size_t>(Dim); ++a) {
+    cell_hi[a] = cell_lo[a] + m.config_.block_size * cell_h[a];
+    inside = inside && lo[a] >= cell_lo[a] && hi[a] <= cell_hi[a];
+  }
+  if (!inside) return m.every_body_;
+  const auto [found, added] = cells_.try_emplace(cell.morton);
+  if (added)
+    for (const int k : m.every_body_)
+      if (passes_(m.penalization_.bodies[static_cast<std::size_t>(k)], cell_lo, cell_hi)) found->second.push_back(k);
+  return found->second;
 }
 
 template <int Dim>
@@ -1049,26 +1076,16 @@ void FluidModel<Dim>::update_masks(double t) {
   masked_.resize(grid_->local_blocks());  // each block's list keeps its storage
   // A body whose signed distance stays at or below mask_depth - 3 w over a box has a force
   // weight of exactly 0 at every point of it (smoothed_mask is 0 from -w down), which mask_at
-  // would pass over: only the others are evaluated. Bodies are first sorted out by cell, the
-  // blocks' ancestors 3 levels above the finest (8 x 8 finest blocks; a block's descendants
-  // are consecutive along the curve, so each cell is tested once), and a block tests only its
-  // cell's bodies: testing every body for every block made the masks quadratic in the bodies.
+  // would pass over: only the others are evaluated, found among the block's cell's.
   const double reach = mask_depth_ - 3 * mask_width_;
-  auto reaching = [&](std::span<const int> candidates, const std::array<double, Dim>& lo, const std::array<double, Dim>& hi,
-                      std::vector<int>& out) {
+  auto reaches = [&](const Body& body, const std::array<double, Dim>& lo, const std::array<double, Dim>& hi) {
     std::array<double, 3> lo3{}, hi3{};
     std::copy(lo.begin(), lo.end(), lo3.begin());
     std::copy(hi.begin(), hi.end(), hi3.begin());
-    out.clear();
-    const std::size_t count = candidates.empty() ? penalization_.bodies.size() : candidates.size();
-    for (std::size_t n = 0; n < count; ++n) {
-      const int k = candidates.empty() ? static_cast<int>(n) : candidates[n];
-      if (penalization_.bodies[static_cast<std::size_t>(k)].distance_bounds(lo3, hi3, t)[1] > reach) out.push_back(k);
-    }
+    return body.distance_bounds(lo3, hi3, t)[1] > reach;
   };
-  const int cell_level = std::max(0, config_.max_level - 3);
-  std::optional<wavelet::BlockKey<Dim>> cell;
-  std::vector<int> in_cell, touching;  // the bodies reaching the cell, the block
+  BodiesByCell cells(*this, reaches);
+  std::vector<int> touching;  // the bodies reaching the block
   for (std::size_t s = 0; s < grid_->local_blocks(); ++s) {
     masked_[s].clear();
     const auto key = grid_->key(s);
@@ -1076,22 +1093,9 @@ void FluidModel<Dim>::update_masks(double t) {
     const auto h = grid_->spacing(key.level);
     std::array<double, Dim> hi{};
     for (std::size_t a = 0; a < static_cast<std::size_t>(Dim); ++a) hi[a] = x0[a] + (bs - 1) * h[a];
-    if (key.level >= cell_level) {
-      auto ancestor = key;
-      while (ancestor.level > cell_level) ancestor = ancestor.parent();
-      if (ancestor != cell) {
-        cell = ancestor;
-        const auto cell_lo = grid_->origin(ancestor);
-        const auto cell_h = grid_->spacing(ancestor.level);
-        std::array<double, Dim> cell_hi{};
-        for (std::size_t a = 0; a < static_cast<std::size_t>(Dim); ++a) cell_hi[a] = cell_lo[a] + bs * cell_h[a];
-        reaching({}, cell_lo, cell_hi, in_cell);
-      }
-      if (in_cell.empty()) continue;
-      reaching(in_cell, x0, hi, touching);
-    } else {
-      reaching({}, x0, hi, touching);
-    }
+    touching.clear();
+    for (const int k : cells.near(x0, hi))
+      if (reaches(penalization_.bodies[static_cast<std::size_t>(k)], x0, hi)) touching.push_back(k);
     if (touching.empty()) continue;
     for (std::size_t p = 0; p < interior_at_.size(); ++p) {
       std::array<double, Dim> x{};
@@ -1272,16 +1276,17 @@ void FluidModel<Dim>::measure_forces(double t) {
     const auto h = grid_->spacing(grid_->key(s).level);
     // Which bodies' control volumes (W > 0: the box grown by the ramp's half-width) this block touches.
     std::vector<std::size_t> shells;
-    for (std::size_t k = 0; k < bodies && penalization_.control_volume_check; ++k) {
-      const double outer = penalization_.bodies[k].control_half_width + ramp_width(penalization_.bodies[k]);
-      bool overlaps = true;
-      for (int a = 0; a < Dim; ++a) {
-        const auto au = static_cast<std::size_t>(a);
-        const double lo = x0[au] - centre[k][au], hi = lo + (bs - 1) * h[au];
-        overlaps = overlaps && hi >= -outer && lo <= outer;
+    if (penalization_.control_volume_check)
+      for (std::size_t k = 0; k < bodies; ++k) {
+        const double outer = penalization_.bodies[k].control_half_width + ramp_width(penalization_.bodies[k]);
+        bool overlaps = true;
+        for (int a = 0; a < Dim; ++a) {
+          const auto au = static_cast<std::size_t>(a);
+          const double lo = x0[au] - centre[k][au], hi = lo + (bs - 1) * h[au];
+          overlaps = overlaps && hi >= -outer && lo <= outer;
+        }
+        if (overlaps) shells.push_back(k);
       }
-      if (overlaps) shells.push_back(k);
-    }
     if (masked_[s].empty() && shells.empty()) continue;
     // The box weight is separable, W = prod_a S(d_a): its factors and their slopes are tabulated
     // along each axis of the block (bs values each) rather than evaluated at every point. Where
