@@ -188,6 +188,14 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   // its rows read has been written (fill_when_written[fill_when_begin[t] .. fill_when_begin[t +
   // 1]) after block t), those reading another rank's values after the messages.
   std::vector<std::int32_t> fill_when_begin, fill_when_written, fill_after_messages;
+  // The copy rectangles of list 0 of those blocks (not of the blocks filled after the messages),
+  // each made as soon as the later of its two blocks is written, source or destination
+  // (copy_when[copy_when_begin[t] .. copy_when_begin[t + 1]) after block t), rather than when
+  // its destination's last source is: both blocks' values are then the freshest they can be in
+  // cache (two moving cylinders: the share of copied values with a side written over 64 blocks
+  // earlier falls from 0.24 to 0.11).
+  std::vector<std::int32_t> copy_when_begin;
+  std::vector<CopyRun> copy_when;
   // Messages: point-major buffers [point][field], one contiguous range per peer rank.
   std::vector<int> recv_rank, recv_first, recv_count;
   std::vector<int> send_rank, send_first, send_count;
@@ -213,7 +221,7 @@ struct AdaptiveGrid<Dim>::GhostPlan {
     reused_from.clear();
     weights = WeightTable{};
     grouped_reach = {-1, -1, -1};
-    empty(fill_when_begin, fill_when_written, fill_after_messages);
+    empty(fill_when_begin, fill_when_written, fill_after_messages, copy_when_begin, copy_when);
   }
 };
 
@@ -1275,6 +1283,35 @@ void AdaptiveGrid<Dim>::order_fill_while_writing(GhostPlan& plan) const {
   for (std::size_t s = 0; s < n; ++s)
     if (when[s] >= 0)
       plan.fill_when_written[static_cast<std::size_t>(next[static_cast<std::size_t>(when[s])]++)] = static_cast<std::int32_t>(s);
+  // Each copy rectangle after the later of its source and destination is written: never after
+  // its destination's other rows (the source is among the blocks they wait for).
+  std::vector<std::int32_t> slot_of_page;
+  for (std::size_t s = 0; s < n; ++s) {
+    const auto page = static_cast<std::size_t>(page_of_[s]);
+    if (page >= slot_of_page.size()) slot_of_page.resize(page + 1, -1);
+    slot_of_page[page] = static_cast<std::int32_t>(s);
+  }
+  const auto& runs = plan.copy_runs[0];
+  const auto& runs_begin = plan.block_group_begin[0][0];
+  auto copy_time = [&](std::size_t s, const typename GhostPlan::CopyRun& run) {
+    const std::int32_t t = std::max(static_cast<std::int32_t>(s), slot_of_page[static_cast<std::size_t>(run.src_page)]);
+    if (t > when[s]) throw std::logic_error("AdaptiveGrid: a copy reads a block its destination does not wait for");
+    return static_cast<std::size_t>(t);
+  };
+  plan.copy_when_begin.assign(n + 1, 0);
+  for (std::size_t s = 0; s < n; ++s)
+    if (when[s] >= 0)
+      for (auto k = runs_begin[s]; k < runs_begin[s + 1]; ++k)
+        ++plan.copy_when_begin[copy_time(s, runs[static_cast<std::size_t>(k)]) + 1];
+  for (std::size_t t = 0; t < n; ++t) plan.copy_when_begin[t + 1] += plan.copy_when_begin[t];
+  plan.copy_when.resize(static_cast<std::size_t>(plan.copy_when_begin[n]));
+  next.assign(plan.copy_when_begin.begin(), plan.copy_when_begin.end() - 1);
+  for (std::size_t s = 0; s < n; ++s)
+    if (when[s] >= 0)
+      for (auto k = runs_begin[s]; k < runs_begin[s + 1]; ++k) {
+        const auto& run = runs[static_cast<std::size_t>(k)];
+        plan.copy_when[static_cast<std::size_t>(next[copy_time(s, run)]++)] = run;
+      }
 }
 
 template <int Dim>
@@ -1463,11 +1500,13 @@ double AdaptiveGrid<Dim>::write_and_fill_stencil_ghosts(const std::function<void
   };
   // A block's rows in the order fill_ghost_lists takes them: its local rows, then (after the
   // messages) its remote rows, then those summed from its own ghosts, stage by stage.
+  // (The copies of a block filled while writing are made apart, plan.copy_when.)
   auto fill_block = [&](std::size_t s, bool remote) {
     const auto [first_sum, last_sum] = packed_range(0, s);
+    using Run = typename GhostPlan::CopyRun;
+    const auto copies = remote ? entries(plan.copy_runs[0], 0, s) : std::span<const Run>{};
     for_field_groups(data_, [&](auto group, std::vector<double>* fields) {
-      fill_local_terms<decltype(group)::value>(plan, entries(plan.copy_runs[0], 0, s), plan.packed[0][0], first_sum,
-                                               last_sum, fields);
+      fill_local_terms<decltype(group)::value>(plan, copies, plan.packed[0][0], first_sum, last_sum, fields);
     });
     if (remote) sum_remote_rows(plan, entries(plan.remote_rows[0], 2, s), data_);
     for (std::size_t stage = 0; stage < 2; ++stage) {
@@ -1480,7 +1519,8 @@ double AdaptiveGrid<Dim>::write_and_fill_stencil_ghosts(const std::function<void
   };
   std::size_t nreq = receive_ghost_values(plan);
   // Each block's ghosts right after the last block they read is written, while that block and
-  // most of the others are still in cache. The writing is timed apart from the filling on the
+  // most of the others are still in cache; its copy rectangles sooner, as soon as their source
+  // and the block are both written. The writing is timed apart from the filling on the
   // cycle counter where there is one (a clock read per block would cost a few percent).
   const Stopwatch whole;
   std::uint64_t writing = 0;
@@ -1489,6 +1529,10 @@ double AdaptiveGrid<Dim>::write_and_fill_stencil_ghosts(const std::function<void
     const std::uint64_t before = cycle_count();
     write_block(t);
     writing += cycle_count() - before;
+    const auto first_copy = static_cast<std::size_t>(plan.copy_when_begin[t]);
+    const auto copies = std::span<const typename GhostPlan::CopyRun>(plan.copy_when)
+                            .subspan(first_copy, static_cast<std::size_t>(plan.copy_when_begin[t + 1]) - first_copy);
+    for_field_groups(data_, [&](auto group, std::vector<double>* fields) { copy_runs<decltype(group)::value>(copies, fields); });
     for (auto k = plan.fill_when_begin[t]; k < plan.fill_when_begin[t + 1]; ++k)
       fill_block(static_cast<std::size_t>(plan.fill_when_written[static_cast<std::size_t>(k)]), false);
   }
