@@ -60,6 +60,22 @@ inline std::uint64_t cycle_count() {
 #endif
 }
 
+/// Items 0, 1, ... put in buckets by their time (0 .. times - 1, or -1 for none), keeping their
+/// order within a bucket (a counting sort): bucket t is sorted[begin[t] .. begin[t + 1]), item k
+/// stored as item(k).
+template <class Item, class ItemOf>
+void bucket_by_time(std::span<const std::int32_t> time, std::size_t times, ItemOf&& item, std::vector<std::int32_t>& begin,
+                    std::vector<Item>& sorted) {
+  begin.assign(times + 1, 0);
+  for (const std::int32_t t : time)
+    if (t >= 0) ++begin[static_cast<std::size_t>(t) + 1];
+  for (std::size_t t = 0; t < times; ++t) begin[t + 1] += begin[t];
+  sorted.resize(static_cast<std::size_t>(begin[times]));
+  std::vector<std::int32_t> next(begin.begin(), begin.end() - 1);
+  for (std::size_t k = 0; k < time.size(); ++k)
+    if (time[k] >= 0) sorted[static_cast<std::size_t>(next[static_cast<std::size_t>(time[k])]++)] = item(k);
+}
+
 /// Calls f(std::integral_constant<int, k>, fields) on the field arrays in groups of k: the
 /// fluid's 4 (2D) or 5 (3D) conserved fields together, other counts one by one.
 template <class F>
@@ -194,8 +210,11 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   // its destination's last source is: both blocks' values are then the freshest they can be in
   // cache (two moving cylinders: the share of copied values with a side written over 64 blocks
   // earlier falls from 0.24 to 0.11).
+  // Ordered by the first fill that uses them (only write_and_fill_stencil_ghosts does), not by
+  // every rebuild: a wavelet-only grid never needs them.
   std::vector<std::int32_t> copy_when_begin;
   std::vector<CopyRun> copy_when;
+  bool copies_ordered = false;
   // Messages: point-major buffers [point][field], one contiguous range per peer rank.
   std::vector<int> recv_rank, recv_first, recv_count;
   std::vector<int> send_rank, send_first, send_count;
@@ -222,6 +241,7 @@ struct AdaptiveGrid<Dim>::GhostPlan {
     weights = WeightTable{};
     grouped_reach = {-1, -1, -1};
     empty(fill_when_begin, fill_when_written, fill_after_messages, copy_when_begin, copy_when);
+    copies_ordered = false;
   }
 };
 
@@ -1260,7 +1280,6 @@ void AdaptiveGrid<Dim>::order_fill_while_writing(GhostPlan& plan) const {
   // and its own ghosts and scratch points: it can be filled once the last of them is written.
   const std::size_t n = plan.block_row_begin.size() - 1;
   std::vector<std::int32_t> when(n, -1);
-  plan.fill_when_begin.assign(n + 1, 0);
   plan.fill_after_messages.clear();
   for (std::size_t s = 0; s < n; ++s) {
     auto last = static_cast<std::int32_t>(s);
@@ -1270,48 +1289,38 @@ void AdaptiveGrid<Dim>::order_fill_while_writing(GhostPlan& plan) const {
       local = read >= 0;
       last = std::max(last, read);
     }
-    if (!local) {
-      plan.fill_after_messages.push_back(static_cast<std::int32_t>(s));
-      continue;
-    }
-    when[s] = last;
-    ++plan.fill_when_begin[static_cast<std::size_t>(last) + 1];
+    if (local) when[s] = last;
+    else plan.fill_after_messages.push_back(static_cast<std::int32_t>(s));
   }
-  for (std::size_t t = 0; t < n; ++t) plan.fill_when_begin[t + 1] += plan.fill_when_begin[t];
-  plan.fill_when_written.assign(static_cast<std::size_t>(plan.fill_when_begin[n]), 0);
-  std::vector<std::int32_t> next(plan.fill_when_begin.begin(), plan.fill_when_begin.end() - 1);
-  for (std::size_t s = 0; s < n; ++s)
-    if (when[s] >= 0)
-      plan.fill_when_written[static_cast<std::size_t>(next[static_cast<std::size_t>(when[s])]++)] = static_cast<std::int32_t>(s);
-  // Each copy rectangle after the later of its source and destination is written: never after
-  // its destination's other rows (the source is among the blocks they wait for).
-  std::vector<std::int32_t> slot_of_page;
-  for (std::size_t s = 0; s < n; ++s) {
-    const auto page = static_cast<std::size_t>(page_of_[s]);
-    if (page >= slot_of_page.size()) slot_of_page.resize(page + 1, -1);
-    slot_of_page[page] = static_cast<std::int32_t>(s);
-  }
+  bucket_by_time(std::span<const std::int32_t>(when), n, [](std::size_t s) { return static_cast<std::int32_t>(s); },
+                 plan.fill_when_begin, plan.fill_when_written);
+  plan.copies_ordered = false;
+}
+
+template <int Dim>
+void AdaptiveGrid<Dim>::order_copies_while_writing(GhostPlan& plan) const {
+  // Each copy rectangle of a block filled while writing, after the later of its source and its
+  // destination is written: never after the destination's other rows (the source is among the
+  // blocks they wait for).
+  const std::size_t n = plan.fill_when_begin.size() - 1;
+  std::vector<std::int32_t> when(n, -1);  // when each block is filled, -1 after the messages
+  for (std::size_t t = 0; t < n; ++t)
+    for (auto k = plan.fill_when_begin[t]; k < plan.fill_when_begin[t + 1]; ++k)
+      when[static_cast<std::size_t>(plan.fill_when_written[static_cast<std::size_t>(k)])] = static_cast<std::int32_t>(t);
+  std::vector<std::int32_t> slot_of_page(pages_, -1);
+  for (std::size_t s = 0; s < n; ++s) slot_of_page[static_cast<std::size_t>(page_of_[s])] = static_cast<std::int32_t>(s);
   const auto& runs = plan.copy_runs[0];
   const auto& runs_begin = plan.block_group_begin[0][0];
-  auto copy_time = [&](std::size_t s, const typename GhostPlan::CopyRun& run) {
-    const std::int32_t t = std::max(static_cast<std::int32_t>(s), slot_of_page[static_cast<std::size_t>(run.src_page)]);
-    if (t > when[s]) throw std::logic_error("AdaptiveGrid: a copy reads a block its destination does not wait for");
-    return static_cast<std::size_t>(t);
-  };
-  plan.copy_when_begin.assign(n + 1, 0);
+  std::vector<std::int32_t> copy_time(runs.size(), -1);
   for (std::size_t s = 0; s < n; ++s)
-    if (when[s] >= 0)
-      for (auto k = runs_begin[s]; k < runs_begin[s + 1]; ++k)
-        ++plan.copy_when_begin[copy_time(s, runs[static_cast<std::size_t>(k)]) + 1];
-  for (std::size_t t = 0; t < n; ++t) plan.copy_when_begin[t + 1] += plan.copy_when_begin[t];
-  plan.copy_when.resize(static_cast<std::size_t>(plan.copy_when_begin[n]));
-  next.assign(plan.copy_when_begin.begin(), plan.copy_when_begin.end() - 1);
-  for (std::size_t s = 0; s < n; ++s)
-    if (when[s] >= 0)
-      for (auto k = runs_begin[s]; k < runs_begin[s + 1]; ++k) {
-        const auto& run = runs[static_cast<std::size_t>(k)];
-        plan.copy_when[static_cast<std::size_t>(next[copy_time(s, run)]++)] = run;
-      }
+    for (auto k = runs_begin[s]; k < runs_begin[s + 1] && when[s] >= 0; ++k) {
+      const auto src = static_cast<std::size_t>(runs[static_cast<std::size_t>(k)].src_page);
+      const std::int32_t t = copy_time[static_cast<std::size_t>(k)] = std::max(static_cast<std::int32_t>(s), slot_of_page[src]);
+      if (t > when[s]) throw std::logic_error("AdaptiveGrid: a copy reads a block its destination does not wait for");
+    }
+  bucket_by_time(std::span<const std::int32_t>(copy_time), n, [&](std::size_t k) { return runs[k]; }, plan.copy_when_begin,
+                 plan.copy_when);
+  plan.copies_ordered = true;
 }
 
 template <int Dim>
@@ -1517,6 +1526,7 @@ double AdaptiveGrid<Dim>::write_and_fill_stencil_ghosts(const std::function<void
       });
     }
   };
+  if (!plan.copies_ordered) order_copies_while_writing(plan);
   std::size_t nreq = receive_ghost_values(plan);
   // Each block's ghosts right after the last block they read is written, while that block and
   // most of the others are still in cache; its copy rectangles sooner, as soon as their source
@@ -2325,8 +2335,9 @@ std::size_t AdaptiveGrid<Dim>::memory_bytes() const {
     if (p) {
       bytes += p->dest.capacity() * 4 + p->local_src.capacity() * 4 + p->local_weight.capacity() * 2 +
                p->local_src_page.capacity() * 4 + p->remote_src.capacity() * 12 +
-               p->segments.capacity() * sizeof(typename GhostPlan::CopyRun) +
+               (p->segments.capacity() + p->copy_when.capacity()) * sizeof(typename GhostPlan::CopyRun) +
                p->kind.capacity() + (p->send_buffer.capacity() + p->recv_buffer.capacity()) * 8;
+      for (const auto& runs : p->copy_runs) bytes += runs.capacity() * sizeof(typename GhostPlan::CopyRun);
       for (const auto& list : p->packed)
         for (const auto& rows : list)
           bytes += (rows.dest.capacity() + rows.begin.capacity() + rows.src.capacity()) * 4 + rows.weight.capacity() * 2;
