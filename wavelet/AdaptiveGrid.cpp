@@ -186,6 +186,20 @@ struct AdaptiveGrid<Dim>::GhostPlan {
     std::vector<std::int32_t> dest, begin, src;
     std::vector<std::uint16_t> weight;
     std::size_t rows() const { return dest.size(); }
+    /// No rows, the storage kept.
+    void clear() {
+      dest.clear();
+      src.clear();
+      weight.clear();
+      begin.assign(1, 0);
+    }
+    /// A row writing `to`, its terms at `from` with weights `by` (indices into the WeightTable).
+    void append(std::int32_t to, std::span<const std::int32_t> from, std::span<const std::uint16_t> by) {
+      dest.push_back(to);
+      src.insert(src.end(), from.begin(), from.end());
+      weight.insert(weight.end(), by.begin(), by.end());
+      begin.push_back(static_cast<std::int32_t>(src.size()));
+    }
   };
   std::array<std::array<PackedRows, 3>, 3> packed;
   // Per kind of packed rows, its index in block_group_begin (below).
@@ -214,7 +228,13 @@ struct AdaptiveGrid<Dim>::GhostPlan {
   // every rebuild: a wavelet-only grid never needs them.
   std::vector<std::int32_t> copy_when_begin;
   std::vector<CopyRun> copy_when;
-  bool copies_ordered = false;
+  // Their sums (list 0's packed rows of kind 0: ghosts predicted from coarser leaves) likewise,
+  // each after the later of its destination and every block it reads is written
+  // (sum_when[sum_when_begin[t] .. sum_when_begin[t + 1]) after block t). The rows summed
+  // from other ghost rows (kinds 1 and 2) still come when the block is filled: they read these.
+  std::vector<std::int32_t> sum_when_begin;
+  PackedRows sum_when;
+  bool copies_and_sums_ordered = false;
   // Messages: point-major buffers [point][field], one contiguous range per peer rank.
   std::vector<int> recv_rank, recv_first, recv_count;
   std::vector<int> send_rank, send_first, send_count;
@@ -233,15 +253,16 @@ struct AdaptiveGrid<Dim>::GhostPlan {
     scratch_start = 0;
     for (std::size_t list = 0; list < copy_runs.size(); ++list) {
       empty(copy_runs[list], remote_rows[list]);
-      for (auto& rows : packed[list]) empty(rows.dest, rows.begin, rows.src, rows.weight);
+      for (auto& rows : packed[list]) rows.clear();
     }
     for (auto& list : block_group_begin)
       for (auto& begin : list) begin.clear();
     reused_from.clear();
     weights = WeightTable{};
     grouped_reach = {-1, -1, -1};
-    empty(fill_when_begin, fill_when_written, fill_after_messages, copy_when_begin, copy_when);
-    copies_ordered = false;
+    empty(fill_when_begin, fill_when_written, fill_after_messages, copy_when_begin, copy_when, sum_when_begin);
+    sum_when.clear();
+    copies_and_sums_ordered = false;
   }
 };
 
@@ -1057,12 +1078,7 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan, const GhostPlan* previ
   for (std::size_t list = 0; list < plan.copy_runs.size(); ++list) {
     plan.copy_runs[list].clear();
     plan.remote_rows[list].clear();
-    for (auto& rows : plan.packed[list]) {
-      rows.dest.clear();
-      rows.src.clear();
-      rows.weight.clear();
-      rows.begin.assign(1, 0);
-    }
+    for (auto& rows : plan.packed[list]) rows.clear();
   }
   for (auto& list : plan.block_group_begin)
     for (auto& begin : list) begin.clear();
@@ -1147,12 +1163,9 @@ void AdaptiveGrid<Dim>::group_ghost_rows(GhostPlan& plan, const GhostPlan* previ
   // Row k, all its terms local, to the packed rows of a kind (0: sums, 1 and 2: the stages of
   // those summed from other ghost rows).
   auto pack = [&](std::size_t l, std::size_t kind, std::size_t k) {
-    auto& to = plan.packed[l][kind];
-    const auto t0 = static_cast<std::ptrdiff_t>(plan.local_begin[k]), t1 = static_cast<std::ptrdiff_t>(plan.local_begin[k + 1]);
-    to.dest.push_back(plan.dest[k]);
-    to.src.insert(to.src.end(), plan.local_src.begin() + t0, plan.local_src.begin() + t1);
-    to.weight.insert(to.weight.end(), plan.local_weight.begin() + t0, plan.local_weight.begin() + t1);
-    to.begin.push_back(static_cast<std::int32_t>(to.src.size()));
+    const auto t0 = static_cast<std::size_t>(plan.local_begin[k]), terms = static_cast<std::size_t>(plan.local_begin[k + 1]) - t0;
+    plan.packed[l][kind].append(plan.dest[k], std::span(plan.local_src).subspan(t0, terms),
+                                std::span(plan.local_weight).subspan(t0, terms));
   };
   // Row k.
   auto add = [&](std::size_t list, std::size_t k, bool rebuilt) {
@@ -1294,11 +1307,11 @@ void AdaptiveGrid<Dim>::order_fill_while_writing(GhostPlan& plan) const {
   }
   bucket_by_time(std::span<const std::int32_t>(when), n, [](std::size_t s) { return static_cast<std::int32_t>(s); },
                  plan.fill_when_begin, plan.fill_when_written);
-  plan.copies_ordered = false;
+  plan.copies_and_sums_ordered = false;
 }
 
 template <int Dim>
-void AdaptiveGrid<Dim>::order_copies_while_writing(GhostPlan& plan) const {
+void AdaptiveGrid<Dim>::order_copies_and_sums_while_writing(GhostPlan& plan) const {
   // Each copy rectangle of a block filled while writing, after the later of its source and its
   // destination is written: never after the destination's other rows (the source is among the
   // blocks they wait for).
@@ -1320,7 +1333,32 @@ void AdaptiveGrid<Dim>::order_copies_while_writing(GhostPlan& plan) const {
     }
   bucket_by_time(std::span<const std::int32_t>(copy_time), n, [&](std::size_t k) { return runs[k]; }, plan.copy_when_begin,
                  plan.copy_when);
-  plan.copies_ordered = true;
+  // The sums: their terms read interior points only (block pages, never scratch points).
+  const auto& sums = plan.packed[0][0];
+  const auto& sums_begin = plan.block_group_begin[0][GhostPlan::kPackedGroup[0]];
+  const auto volume = static_cast<std::int64_t>(block_volume_);
+  std::vector<std::int32_t> sum_time(sums.rows(), -1);
+  for (std::size_t s = 0; s < n; ++s)
+    for (auto k = sums_begin[s]; k < sums_begin[s + 1] && when[s] >= 0; ++k) {
+      auto t = static_cast<std::int32_t>(s);
+      for (auto term = sums.begin[static_cast<std::size_t>(k)]; term < sums.begin[static_cast<std::size_t>(k) + 1]; ++term) {
+        const auto page = static_cast<std::size_t>(sums.src[static_cast<std::size_t>(term)] / volume);
+        if (page >= slot_of_page.size()) throw std::logic_error("AdaptiveGrid: a sum reads a scratch point");
+        t = std::max(t, slot_of_page[page]);
+      }
+      if (t > when[s]) throw std::logic_error("AdaptiveGrid: a sum reads a block its destination does not wait for");
+      sum_time[static_cast<std::size_t>(k)] = t;
+    }
+  std::vector<std::int32_t> order;
+  bucket_by_time(std::span<const std::int32_t>(sum_time), n, [](std::size_t k) { return static_cast<std::int32_t>(k); },
+                 plan.sum_when_begin, order);
+  plan.sum_when.clear();
+  for (const std::int32_t k : order) {
+    const auto row = static_cast<std::size_t>(k);
+    const auto t0 = static_cast<std::size_t>(sums.begin[row]), terms = static_cast<std::size_t>(sums.begin[row + 1]) - t0;
+    plan.sum_when.append(sums.dest[row], std::span(sums.src).subspan(t0, terms), std::span(sums.weight).subspan(t0, terms));
+  }
+  plan.copies_and_sums_ordered = true;
 }
 
 template <int Dim>
@@ -1509,15 +1547,17 @@ double AdaptiveGrid<Dim>::write_and_fill_stencil_ghosts(const std::function<void
   };
   // A block's rows in the order fill_ghost_lists takes them: its local rows, then (after the
   // messages) its remote rows, then those summed from its own ghosts, stage by stage.
-  // (The copies of a block filled while writing are made apart, plan.copy_when.)
+  // (The copies and sums of a block filled while writing are made apart: plan.copy_when,
+  // plan.sum_when.)
   auto fill_block = [&](std::size_t s, bool remote) {
-    const auto [first_sum, last_sum] = packed_range(0, s);
-    using Run = typename GhostPlan::CopyRun;
-    const auto copies = remote ? entries(plan.copy_runs[0], 0, s) : std::span<const Run>{};
-    for_field_groups(data_, [&](auto group, std::vector<double>* fields) {
-      fill_local_terms<decltype(group)::value>(plan, copies, plan.packed[0][0], first_sum, last_sum, fields);
-    });
-    if (remote) sum_remote_rows(plan, entries(plan.remote_rows[0], 2, s), data_);
+    if (remote) {
+      const auto [first_sum, last_sum] = packed_range(0, s);
+      for_field_groups(data_, [&](auto group, std::vector<double>* fields) {
+        fill_local_terms<decltype(group)::value>(plan, entries(plan.copy_runs[0], 0, s), plan.packed[0][0], first_sum,
+                                                 last_sum, fields);
+      });
+      sum_remote_rows(plan, entries(plan.remote_rows[0], 2, s), data_);
+    }
     for (std::size_t stage = 0; stage < 2; ++stage) {
       const auto [first, last] = packed_range(1 + stage, s);
       if (first == last) continue;
@@ -1526,7 +1566,7 @@ double AdaptiveGrid<Dim>::write_and_fill_stencil_ghosts(const std::function<void
       });
     }
   };
-  if (!plan.copies_ordered) order_copies_while_writing(plan);
+  if (!plan.copies_and_sums_ordered) order_copies_and_sums_while_writing(plan);
   std::size_t nreq = receive_ghost_values(plan);
   // Each block's ghosts right after the last block they read is written, while that block and
   // most of the others are still in cache; its copy rectangles sooner, as soon as their source
@@ -1542,7 +1582,10 @@ double AdaptiveGrid<Dim>::write_and_fill_stencil_ghosts(const std::function<void
     const auto first_copy = static_cast<std::size_t>(plan.copy_when_begin[t]);
     const auto copies = std::span<const typename GhostPlan::CopyRun>(plan.copy_when)
                             .subspan(first_copy, static_cast<std::size_t>(plan.copy_when_begin[t + 1]) - first_copy);
-    for_field_groups(data_, [&](auto group, std::vector<double>* fields) { copy_runs<decltype(group)::value>(copies, fields); });
+    for_field_groups(data_, [&](auto group, std::vector<double>* fields) {
+      fill_local_terms<decltype(group)::value>(plan, copies, plan.sum_when, static_cast<std::size_t>(plan.sum_when_begin[t]),
+                                               static_cast<std::size_t>(plan.sum_when_begin[t + 1]), fields);
+    });
     for (auto k = plan.fill_when_begin[t]; k < plan.fill_when_begin[t + 1]; ++k)
       fill_block(static_cast<std::size_t>(plan.fill_when_written[static_cast<std::size_t>(k)]), false);
   }
@@ -2338,9 +2381,12 @@ std::size_t AdaptiveGrid<Dim>::memory_bytes() const {
                (p->segments.capacity() + p->copy_when.capacity()) * sizeof(typename GhostPlan::CopyRun) +
                p->kind.capacity() + (p->send_buffer.capacity() + p->recv_buffer.capacity()) * 8;
       for (const auto& runs : p->copy_runs) bytes += runs.capacity() * sizeof(typename GhostPlan::CopyRun);
+      auto packed_bytes = [](const typename GhostPlan::PackedRows& rows) {
+        return (rows.dest.capacity() + rows.begin.capacity() + rows.src.capacity()) * 4 + rows.weight.capacity() * 2;
+      };
       for (const auto& list : p->packed)
-        for (const auto& rows : list)
-          bytes += (rows.dest.capacity() + rows.begin.capacity() + rows.src.capacity()) * 4 + rows.weight.capacity() * 2;
+        for (const auto& rows : list) bytes += packed_bytes(rows);
+      bytes += packed_bytes(p->sum_when) + (p->copy_when_begin.capacity() + p->sum_when_begin.capacity()) * 4;
     }
   return bytes;
 }

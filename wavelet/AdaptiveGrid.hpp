@@ -307,8 +307,9 @@ class AdaptiveGrid {
   void group_ghost_rows(GhostPlan& plan, const GhostPlan* previous) const;
   /// The blocks' order for write_and_fill_stencil_ghosts() (GhostPlan::fill_when_written).
   void order_fill_while_writing(GhostPlan& plan) const;
-  /// The copy rectangles' order for write_and_fill_stencil_ghosts() (GhostPlan::copy_when).
-  void order_copies_while_writing(GhostPlan& plan) const;
+  /// The copy rectangles' and the sums' order for write_and_fill_stencil_ghosts()
+  /// (GhostPlan::copy_when, GhostPlan::sum_when).
+  void order_copies_and_sums_while_writing(GhostPlan& plan) const;
   static constexpr std::size_t kRebuiltRows = 2;
   void allocate_local();
   /// Block slot s in page s, no page free (a fresh layout, or the arrays written in slot order).

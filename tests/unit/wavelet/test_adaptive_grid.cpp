@@ -464,11 +464,12 @@ TEST(AdaptiveGrid, StencilGhostsAreThoseOfAFullFill2D) { stencil_ghosts_are_thos
 TEST(AdaptiveGrid, StencilGhostsAreThoseOfAFullFill3D) { stencil_ghosts_are_those_of_a_full_fill<3>(); }
 
 // write_and_fill_stencil_ghosts fills each block's ghosts as soon as the blocks they read are
-// written (its copies as soon as their two blocks are): its interiors and stencil ghosts must be
-// bitwise those of writing every block and then fill_stencil_ghosts. Before it, every point
-// holds another field's values, so a ghost filled before one of its sources was written would
-// show. Checked again after each of two adaptations (a refinement, then its coarsening back),
-// whose new plans (one of them the storage of the first) must order their fill afresh.
+// written (its copies and sums as soon as the blocks each joins are): its interiors and stencil
+// ghosts must be bitwise those of writing every block and then fill_stencil_ghosts. Before it,
+// every point holds another field's values, so a ghost filled before one of its sources was
+// written would show (a sum made when only its destination is written fails it). Checked again
+// after each of two adaptations (a refinement, then its coarsening back), whose new plans (one
+// of them the storage of the first) must order their fill afresh.
 template <int Dim>
 void filling_while_writing_is_writing_then_filling() {
   auto grid = mixed_level_grid<Dim>();
