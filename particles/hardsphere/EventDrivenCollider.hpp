@@ -114,6 +114,20 @@
 // in perf unchanged at 13-14%, medians 546 against 577 k/s); the scalar gather instead of the
 // vector one on this AMD machine, whose vector gathers perf blames for 17% of the time at
 // N = 1372 (1375 against 1416 k/s there: the vector gather stays).
+// Stop 50 (this VM's pointer chase on huge pages: 18 ns at 4 MB, 105 ns at 8 MB, 138 ns at
+// 16 MB, so the large gas's ~15 MB are served from DRAM; perf per collision, N = 97 556 against
+// 1372: 2.04 against 0.91 us, the 1.13 us between them spread over the contact times +0.33, the
+// event's own lines in advance_to +0.17, the calendar's top and update +0.29, gather and rings
+// +0.25): a pipeline of prefetches over the calendar's next events, without gain. Each
+// particle of the current bucket's heap (buckets 4 or 8 times as wide, to hold the next 6-12
+// events) advanced one stage per event: its Pending and Flight lines, then its cells' head
+// words and its partner's lines, then its candidates' Flight lines. 76-80% of events found
+// their candidates requested an event or more ahead, and the contact times' share in perf fell
+// from 26 to 18%, but the look-ahead took 17% itself (its own loads of head words): medians of
+// three repetitions, five alternating rounds, 391-498 k/s without, 378-432 and 360-481 with;
+// requesting all 27 head words instead of one per row of three was slower still (275-314 k/s).
+// glibc's huge pages for every allocation (GLIBC_TUNABLES=glibc.malloc.hugetlb=1, the arrays
+// under 2 MB included): 483-585 against 530-558 k/s, no change.
 #include <array>
 #include <cstdint>
 #include <limits>
