@@ -1343,7 +1343,8 @@ void AdaptiveGrid<Dim>::order_copies_and_sums_while_writing(GhostPlan& plan) con
       auto t = static_cast<std::int32_t>(s);
       for (auto term = sums.begin[static_cast<std::size_t>(k)]; term < sums.begin[static_cast<std::size_t>(k) + 1]; ++term) {
         const auto page = static_cast<std::size_t>(sums.src[static_cast<std::size_t>(term)] / volume);
-        if (page >= slot_of_page.size()) throw std::logic_error("AdaptiveGrid: a sum reads a scratch point");
+        if (page >= slot_of_page.size() || slot_of_page[page] < 0)
+          throw std::logic_error("AdaptiveGrid: a sum reads a scratch point or a free page");
         t = std::max(t, slot_of_page[page]);
       }
       if (t > when[s]) throw std::logic_error("AdaptiveGrid: a sum reads a block its destination does not wait for");
