@@ -20,6 +20,7 @@
 
 #include <fmt/format.h>
 
+#include "core/StreamingCopy.hpp"
 #include "core/Timers.hpp"
 #include "wavelet/BlockPrediction.hpp"
 #include "wavelet/DetailKernels.hpp"
@@ -332,7 +333,12 @@ AdaptiveGrid<Dim>& AdaptiveGrid<Dim>::operator=(const AdaptiveGrid& o) {
   if (this == &o) return *this;
   if (o.comm_ != comm_) throw std::invalid_argument("AdaptiveGrid: assignment across communicators");
   data_.resize(o.data_.size());
-  for (std::size_t f = 0; f < data_.size(); ++f) data_[f].assign(o.data_[f].begin(), o.data_[f].end());
+  // Streamed (core/StreamingCopy.hpp): the copy is the solver's last good state, read back only
+  // after a failure.
+  for (std::size_t f = 0; f < data_.size(); ++f) {
+    data_[f].resize(o.data_[f].size());
+    copy_streaming(o.data_[f].data(), o.data_[f].size(), data_[f].data());
+  }
   // The solver keeps its last good state by assignment every step; between adaptations only
   // the values differ (copying the plan as well was 1.3% of a 2D Navier-Stokes run).
   if (plan_ && layout_serial_ == o.layout_serial_ && stencil_reach_ == o.stencil_reach_) return *this;
