@@ -167,7 +167,8 @@ class AdaptiveGrid {
   explicit AdaptiveGrid(GridConfig<Dim> config, MPI_Comm comm = MPI_COMM_WORLD);
   AdaptiveGrid(const AdaptiveGrid&);
   /// Copies grid, fields and ghost plan, reusing this grid's storage where it is large enough
-  /// (the solver keeps its last good state this way every step).
+  /// (the solver keeps its last good state this way every step). The fields are written with
+  /// non-temporal stores (core/StreamingCopy.hpp): the copy is not for reading soon.
   AdaptiveGrid& operator=(const AdaptiveGrid&);
   ~AdaptiveGrid();
 
