@@ -6,11 +6,12 @@
 
 #include "core/StreamingCopy.hpp"
 
-// The streamed copy writes exactly what std::copy would, whatever the length (odd ones end with
-// one ordinary store) and the alignment (a misaligned pair takes std::copy), and nothing past the
-// end.
+// The streamed copy writes exactly what std::copy would, whatever the length (short arrays take
+// std::copy, long odd ones end with one ordinary store) and the alignment (a misaligned pair
+// takes std::copy), and nothing past the end.
 TEST(StreamingCopy, CopiesEveryValueBitwise) {
-  for (const std::size_t count : {0u, 1u, 2u, 3u, 17u, 1000u}) {
+  constexpr std::size_t kLong = grainwave::kStreamedCopyFrom;
+  for (const std::size_t count : {std::size_t{0}, std::size_t{1}, std::size_t{17}, kLong, kLong + 1, kLong + 2}) {
     for (const std::size_t shift : {0u, 1u}) {
       std::vector<double> from(count + 2), to(count + 2, -1.0);
       std::iota(from.begin(), from.end(), 0.5);
