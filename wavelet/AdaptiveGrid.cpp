@@ -1318,9 +1318,9 @@ void AdaptiveGrid<Dim>::order_fill_while_writing(GhostPlan& plan) const {
 
 template <int Dim>
 void AdaptiveGrid<Dim>::order_copies_and_sums_while_writing(GhostPlan& plan) const {
-  // Each copy rectangle of a block filled while writing, after the later of its source and its
-  // destination is written: never after the destination's other rows (the source is among the
-  // blocks they wait for).
+  // Each copy rectangle and sum of a block filled while writing, after the later of its
+  // destination and the blocks it reads is written: never after the destination's other rows
+  // (what it reads is among the blocks they wait for).
   const std::size_t n = plan.fill_when_begin.size() - 1;
   std::vector<std::int32_t> when(n, -1);  // when each block is filled, -1 after the messages
   for (std::size_t t = 0; t < n; ++t)
@@ -1328,34 +1328,37 @@ void AdaptiveGrid<Dim>::order_copies_and_sums_while_writing(GhostPlan& plan) con
       when[static_cast<std::size_t>(plan.fill_when_written[static_cast<std::size_t>(k)])] = static_cast<std::int32_t>(t);
   std::vector<std::int32_t> slot_of_page(pages_, -1);
   for (std::size_t s = 0; s < n; ++s) slot_of_page[static_cast<std::size_t>(page_of_[s])] = static_cast<std::int32_t>(s);
+  // Per entry (copy rectangle or sum) of the blocks filled while writing: the later of its
+  // destination and the last block it reads (latest_read(k)), -1 for the others.
+  auto entry_times = [&](const std::vector<std::int32_t>& begin, std::size_t entries, auto&& latest_read) {
+    std::vector<std::int32_t> time(entries, -1);
+    for (std::size_t s = 0; s < n; ++s)
+      for (auto k = begin[s]; k < begin[s + 1] && when[s] >= 0; ++k) {
+        const std::int32_t t = std::max(static_cast<std::int32_t>(s), latest_read(static_cast<std::size_t>(k)));
+        if (t > when[s]) throw std::logic_error("AdaptiveGrid: a ghost row reads a block its destination does not wait for");
+        time[static_cast<std::size_t>(k)] = t;
+      }
+    return time;
+  };
   const auto& runs = plan.copy_runs[0];
-  const auto& runs_begin = plan.block_group_begin[0][0];
-  std::vector<std::int32_t> copy_time(runs.size(), -1);
-  for (std::size_t s = 0; s < n; ++s)
-    for (auto k = runs_begin[s]; k < runs_begin[s + 1] && when[s] >= 0; ++k) {
-      const auto src = static_cast<std::size_t>(runs[static_cast<std::size_t>(k)].src_page);
-      const std::int32_t t = copy_time[static_cast<std::size_t>(k)] = std::max(static_cast<std::int32_t>(s), slot_of_page[src]);
-      if (t > when[s]) throw std::logic_error("AdaptiveGrid: a copy reads a block its destination does not wait for");
-    }
+  const auto copy_time = entry_times(plan.block_group_begin[0][0], runs.size(), [&](std::size_t k) {
+    return slot_of_page[static_cast<std::size_t>(runs[k].src_page)];
+  });
   bucket_by_time(std::span<const std::int32_t>(copy_time), n, [&](std::size_t k) { return runs[k]; }, plan.copy_when_begin,
                  plan.copy_when);
   // The sums: their terms read interior points only (block pages, never scratch points).
   const auto& sums = plan.packed[0][0];
-  const auto& sums_begin = plan.block_group_begin[0][GhostPlan::kPackedGroup[0]];
   const auto volume = static_cast<std::int64_t>(block_volume_);
-  std::vector<std::int32_t> sum_time(sums.rows(), -1);
-  for (std::size_t s = 0; s < n; ++s)
-    for (auto k = sums_begin[s]; k < sums_begin[s + 1] && when[s] >= 0; ++k) {
-      auto t = static_cast<std::int32_t>(s);
-      for (auto term = sums.begin[static_cast<std::size_t>(k)]; term < sums.begin[static_cast<std::size_t>(k) + 1]; ++term) {
-        const auto page = static_cast<std::size_t>(sums.src[static_cast<std::size_t>(term)] / volume);
-        if (page >= slot_of_page.size() || slot_of_page[page] < 0)
-          throw std::logic_error("AdaptiveGrid: a sum reads a scratch point or a free page");
-        t = std::max(t, slot_of_page[page]);
-      }
-      if (t > when[s]) throw std::logic_error("AdaptiveGrid: a sum reads a block its destination does not wait for");
-      sum_time[static_cast<std::size_t>(k)] = t;
+  const auto sum_time = entry_times(plan.block_group_begin[0][GhostPlan::kPackedGroup[0]], sums.rows(), [&](std::size_t k) {
+    std::int32_t latest = -1;
+    for (auto term = static_cast<std::size_t>(sums.begin[k]); term < static_cast<std::size_t>(sums.begin[k + 1]); ++term) {
+      const auto page = static_cast<std::size_t>(sums.src[term] / volume);
+      if (page >= slot_of_page.size() || slot_of_page[page] < 0)
+        throw std::logic_error("AdaptiveGrid: a sum reads a scratch point or a free page");
+      latest = std::max(latest, slot_of_page[page]);
     }
+    return latest;
+  });
   std::vector<std::int32_t> order;
   bucket_by_time(std::span<const std::int32_t>(sum_time), n, [](std::size_t k) { return static_cast<std::int32_t>(k); },
                  plan.sum_when_begin, order);
