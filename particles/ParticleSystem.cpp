@@ -320,6 +320,8 @@ void ParticleSystem::save_good_state() {
 void ParticleSystem::restore_good_state() {
   store_ = good_;
   tally_ = good_tally_;
+  step_overlap_.reset();
+  events_continue_ = false;
 }
 
 void ParticleSystem::free_flight(double dt) {
@@ -341,6 +343,7 @@ void ParticleSystem::advance(double t, double dt) {
   ids_before = store_.id;
   long step_collisions = 0;
   step_log_.clear();
+  step_overlap_.reset();
   if (mode_ == CollisionMode::kNone) {
     ScopedTimer timer(timers_, "free_flight");
     free_flight(dt);
@@ -354,10 +357,20 @@ void ParticleSystem::advance(double t, double dt) {
     tally_.removed += stats.removed;
   } else {
     ScopedTimer timer(timers_, "collisions");
-    // A fresh calendar each step: the state at a step boundary is then the whole state.
-    event_driven_->initialize(store_, domain_, t);
+    // The events go on from where the last step left them when the collider holds this very
+    // state; after a restart, from the checkpoint's schedule. Predicting every event afresh
+    // at each step cost as much as the collisions themselves (1372 spheres, a step of about
+    // 0.8 collisions each), and a restart without the schedule would then not be exact.
+    const bool goes_on = events_continue_ && event_driven_->time() == t;
+    if (!goes_on && resume_schedule_ && resume_schedule_->time == t)
+      event_driven_->resume(store_, domain_, *resume_schedule_);
+    else if (!goes_on)
+      event_driven_->initialize(store_, domain_, t);
+    resume_schedule_.reset();
+    events_continue_ = false;  // until advance_to has written the state back
     event_driven_->record_collisions(&step_log_);
     const auto stats = event_driven_->advance_to(store_, domain_, t + dt);
+    events_continue_ = true;
     step_collisions = stats.collisions;
     tally_.wall_hits += stats.wall_hits;
   }
@@ -403,8 +416,8 @@ void ParticleSystem::advance(double t, double dt) {
           ++tally_.crossings;
   if (mode_ != CollisionMode::kNone) {
     ScopedTimer timer(timers_, "overlap_check");
-    tally_.max_overlap = std::max(
-        tally_.max_overlap, hardsphere::max_relative_overlap(store_, domain_, overlap_cells_));
+    step_overlap_ = hardsphere::max_relative_overlap(store_, domain_, overlap_cells_);
+    tally_.max_overlap = std::max(tally_.max_overlap, *step_overlap_);
   }
   record_totals(step_collisions, boundary_collisions);
 }
@@ -451,7 +464,9 @@ std::optional<std::string> ParticleSystem::check_state() const {
     }
   }
   if (mode_ != CollisionMode::kNone) {
-    const double overlap = hardsphere::max_relative_overlap(store_, domain_, overlap_cells_);
+    // The step has just measured it on this same state (check_state follows advance).
+    const double overlap =
+        step_overlap_ ? *step_overlap_ : hardsphere::max_relative_overlap(store_, domain_, overlap_cells_);
     if (overlap > overlap_tolerance_)
       return fmt::format("particles overlap by {:.3g} of a radius (tolerance {:.3g})", overlap,
                          overlap_tolerance_);
@@ -581,10 +596,61 @@ void ParticleSystem::write_checkpoint(io::Hdf5Group& group) {
     g.set_attribute(fmt::format("initial_momentum_{}", k), initial_momentum_[k]);
   g.write_text("totals_csv", totals_csv_);
   g.write_text("collisions_csv", collisions_csv_);
+  write_event_schedule(g);
   std::vector<double> history;
   for (const auto& [t, k] : temperature_history_) history.insert(history.end(), {t, k});
   g.write_rows("temperature_history", history.data(),
                mpi::is_root() ? temperature_history_.size() : 0, 2);
+}
+
+void ParticleSystem::write_event_schedule(io::Hdf5Group& particles) const {
+  // Only a schedule of the state being written, and in the order the store is written (by id;
+  // the event-driven store never reorders, its ids ascending from placement).
+  const bool in_id_order = std::is_sorted(store_.id.begin(), store_.id.end());
+  const bool current = mode_ == CollisionMode::kEventDriven && events_continue_ && in_id_order;
+  particles.set_attribute("event_schedule", static_cast<std::int64_t>(current ? 1 : 0));
+  if (!current) return;
+  const hardsphere::EventSchedule s = event_driven_->schedule();
+  auto g = particles.create_group("event_schedule");
+  g.set_attribute("time", s.time);
+  const bool local_rows = !replicated_ || mpi::is_root();  // replicated: rank 0 writes
+  auto reals = [&](const char* name, const std::vector<double>& v) {
+    g.write_rows(name, v.data(), local_rows ? v.size() : 0);
+  };
+  auto integers = [&](const char* name, const std::vector<std::int64_t>& v, std::size_t components = 1) {
+    g.write_rows(name, v.data(), local_rows ? v.size() / components : 0, components);
+  };
+  reals("collision_time", s.collision_time);
+  reals("crossing_time", s.crossing_time);
+  reals("burst_start", s.burst_start);
+  integers("partner", s.partner);
+  integers("partner_count", s.partner_count);
+  integers("counter", s.counter);
+  integers("burst_count", s.burst_count);
+  integers("crossing_face", s.crossing_face);
+  integers("ring_next", s.ring_next);
+  integers("cell", s.cell, 3);
+  integers("head", s.head);
+}
+
+void ParticleSystem::read_event_schedule(const io::Hdf5Group& particles) {
+  if (!particles.has_attribute("event_schedule") || particles.integer_attribute("event_schedule") == 0) return;
+  const auto g = particles.open_group("event_schedule");
+  hardsphere::EventSchedule s;
+  s.time = g.real_attribute("time");
+  auto all = [&](const char* name) { return g.shape(name)[0]; };
+  s.collision_time = g.read_rows_real("collision_time", 0, all("collision_time"));
+  s.crossing_time = g.read_rows_real("crossing_time", 0, all("crossing_time"));
+  s.burst_start = g.read_rows_real("burst_start", 0, all("burst_start"));
+  s.partner = g.read_rows_integer("partner", 0, all("partner"));
+  s.partner_count = g.read_rows_integer("partner_count", 0, all("partner_count"));
+  s.counter = g.read_rows_integer("counter", 0, all("counter"));
+  s.burst_count = g.read_rows_integer("burst_count", 0, all("burst_count"));
+  s.crossing_face = g.read_rows_integer("crossing_face", 0, all("crossing_face"));
+  s.ring_next = g.read_rows_integer("ring_next", 0, all("ring_next"));
+  s.cell = g.read_rows_integer("cell", 0, all("cell"));
+  s.head = g.read_rows_integer("head", 0, all("head"));
+  resume_schedule_ = std::move(s);
 }
 
 void ParticleSystem::read_checkpoint(const io::Hdf5Group& group) {
@@ -605,6 +671,9 @@ void ParticleSystem::read_checkpoint(const io::Hdf5Group& group) {
   const auto ids = g.read_rows_integer("id", first, count);
   const auto flags = g.read_rows_integer("flags", first, count);
   store_.clear();
+  step_overlap_.reset();
+  events_continue_ = false;
+  resume_schedule_.reset();
   for (std::size_t i = 0; i < count; ++i) {
     auto v3 = [&](const std::vector<double>& a) {
       return Vec3(a[3 * i], a[3 * i + 1], a[3 * i + 2]);
@@ -629,6 +698,7 @@ void ParticleSystem::read_checkpoint(const io::Hdf5Group& group) {
     initial_momentum_[k] = g.real_attribute(fmt::format("initial_momentum_{}", k));
   totals_csv_ = g.read_text("totals_csv");
   collisions_csv_ = g.read_text("collisions_csv");
+  read_event_schedule(g);
   const auto rows = g.shape("temperature_history")[0];
   const auto history = g.read_rows_real("temperature_history", 0, rows);
   temperature_history_.clear();

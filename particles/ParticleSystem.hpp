@@ -17,6 +17,7 @@
 // depend on the number of ranks.
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <random>
 #include <string>
 
@@ -99,6 +100,17 @@ class ParticleSystem : public io::System {
   std::unique_ptr<hardsphere::RetrospectiveCollider> retrospective_;
   std::unique_ptr<hardsphere::EventDrivenCollider> event_driven_;
   mutable hardsphere::CellList overlap_cells_;
+  /// The deepest overlap over the radius of the state the last step left (check_state reads it
+  /// instead of searching again); empty where the state came from elsewhere.
+  std::optional<double> step_overlap_;
+  /// Whether the event-driven collider holds the store's state as its last advance_to() left it
+  /// (its pending events then go on at the next step).
+  bool events_continue_ = false;
+  /// The event schedule a checkpoint held, for the first step after a restart.
+  std::optional<hardsphere::EventSchedule> resume_schedule_;
+  /// The collider's schedule into a checkpoint's particles group, and back.
+  void write_event_schedule(io::Hdf5Group& particles) const;
+  void read_event_schedule(const io::Hdf5Group& particles);
   double overlap_tolerance_ = 1e-10;
 
   /// Per-step totals for the time series file (totals.csv) and the Haff's-law check.

@@ -19,7 +19,8 @@ namespace grainwave::particles::hardsphere {
 
 class CellList {
  public:
-  /// Lays the grid over `domain` with cells at least `min_cell_size` wide. Allocates (once).
+  /// Lays the grid over `domain` with cells at least `min_cell_size` wide. Allocates (once);
+  /// the adjacency is built again only when the cell counts or the periodic axes change.
   void configure(const Domain& domain, double min_cell_size);
   /// Bins the positions (clamped into the box on non-periodic axes). No allocation after warm-up.
   void build(const std::vector<Vec3>& positions);
@@ -66,6 +67,9 @@ class CellList {
   std::array<double, 3> size_{1.0, 1.0, 1.0};
   std::array<double, 3> inverse_size_{1.0, 1.0, 1.0};
   std::array<int, 3> count_{1, 1, 1};
+  /// What the adjacency below was built for (configure() keeps it while these stay the same).
+  std::array<int, 3> adjacency_count_{0, 0, 0};
+  std::array<bool, 3> periodic_{false, false, false};
   std::vector<int> cell_start_;       ///< particles of cell c are order_[cell_start_[c] .. [c+1])
   std::vector<int> order_;            ///< particle indices sorted by cell
   std::vector<int> particle_cell_;    ///< scratch: cell of each particle

@@ -610,6 +610,92 @@ void EventDrivenCollider::predict(int i, int layer) {
 }
 
 void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain, double start_time) {
+  set_up(store, domain, start_time, nullptr);
+}
+
+void EventDrivenCollider::resume(ParticleStore& store, const Domain& domain, const EventSchedule& schedule) {
+  set_up(store, domain, schedule.time, &schedule);
+}
+
+EventSchedule EventDrivenCollider::schedule() const {
+  EventSchedule out;
+  out.time = now_;
+  const std::size_t n = pending_.size();
+  out.collision_time.resize(n);
+  out.crossing_time.resize(n);
+  out.burst_start.resize(n);
+  out.partner.resize(n);
+  out.partner_count.resize(n);
+  out.counter.resize(n);
+  out.burst_count.resize(n);
+  out.crossing_face.resize(n);
+  out.ring_next.resize(n);
+  out.cell.resize(3 * n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Pending& p = pending_[i];
+    out.collision_time[i] = p.collision_time;
+    out.crossing_time[i] = p.crossing_time;
+    out.partner[i] = p.partner;
+    out.partner_count[i] = p.partner_count;
+    out.crossing_face[i] = p.crossing_face;
+    for (std::size_t ax = 0; ax < 3; ++ax) out.cell[3 * i + ax] = p.cell[ax];
+    out.counter[i] = counter_[i];
+    out.burst_start[i] = burst_[i].start;
+    out.burst_count[i] = burst_[i].count;
+    out.ring_next[i] = cell_link_[i].next;
+  }
+  out.head.assign(head_.begin(), head_.end());
+  return out;
+}
+
+void EventDrivenCollider::take_schedule(const EventSchedule& schedule) {
+  const std::size_t n = pending_.size();
+  auto fits = [&](bool ok, const char* what) {
+    if (!ok)
+      throw std::invalid_argument(
+          std::string("EventDrivenCollider: the saved event schedule does not fit the particles (") + what + ")");
+  };
+  for (const auto* column : {&schedule.collision_time, &schedule.crossing_time, &schedule.burst_start})
+    fits(column->size() == n, "a per-particle column's length");
+  for (const auto* column : {&schedule.partner, &schedule.partner_count, &schedule.counter, &schedule.burst_count,
+                             &schedule.crossing_face, &schedule.ring_next})
+    fits(column->size() == n, "a per-particle column's length");
+  fits(schedule.cell.size() == 3 * n && schedule.head.size() == head_.size(), "cells");
+  const auto n_int = static_cast<std::int64_t>(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    Pending& p = pending_[i];
+    p.collision_time = schedule.collision_time[i];
+    p.crossing_time = schedule.crossing_time[i];
+    // Partners are particles (>= 0), walls (-1 - face, six faces) or none.
+    const std::int64_t partner = schedule.partner[i];
+    fits(partner == kNoPartner || (partner >= -6 && partner < n_int), "a partner");
+    p.partner = static_cast<int>(partner);
+    p.partner_count = static_cast<std::uint32_t>(schedule.partner_count[i]);
+    fits(schedule.crossing_face[i] >= 0 && schedule.crossing_face[i] < 6, "a crossing face");
+    p.crossing_face = static_cast<std::uint8_t>(schedule.crossing_face[i]);
+    for (std::size_t ax = 0; ax < 3; ++ax) {
+      const std::int64_t c = schedule.cell[3 * i + ax];
+      fits(c >= 0 && c < cells_[ax], "a cell");
+      p.cell[ax] = static_cast<std::uint16_t>(c);
+    }
+    counter_[i] = static_cast<std::uint32_t>(schedule.counter[i]);
+    burst_[i] = Burst{schedule.burst_start[i], static_cast<std::uint32_t>(schedule.burst_count[i])};
+    fits(schedule.ring_next[i] >= 0 && schedule.ring_next[i] < n_int, "a ring");
+    cell_link_[i].next = static_cast<int>(schedule.ring_next[i]);
+  }
+  for (std::size_t i = 0; i < n; ++i)
+    cell_link_[static_cast<std::size_t>(cell_link_[i].next)].prev = static_cast<int>(i);
+  for (std::size_t c = 0; c < head_.size(); ++c) {
+    const std::int64_t head = schedule.head[c];
+    // Empty, one particle, or several_head() of the first of a ring.
+    const std::int64_t first = head >= 0 ? head : kEmptyHead - 1 - head;
+    fits(head == kEmptyHead || (first >= 0 && first < n_int), "a cell's head");
+    head_[c] = static_cast<int>(head);
+  }
+}
+
+void EventDrivenCollider::set_up(ParticleStore& store, const Domain& domain, double start_time,
+                                 const EventSchedule* schedule) {
   const std::size_t n = store.size();
   now_ = start_time;
   dimension_ = domain.dimension;
@@ -740,7 +826,9 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
     pending_[i].fixed = store.is_fixed(i);
     inverse_mass_[i] = store.inverse_mass(i);
     spinning_ = spinning_ || !spin_[i].angular_acceleration.isZero(0.0);
-    domain.wrap(store.position[i]);
+    // A resumed store holds the positions as advance_to() left them (the cells from the
+    // schedule): wrapping one that rounding put on the far side of a face would change it.
+    if (!schedule) domain.wrap(store.position[i]);
     flight_[i] = Flight{store.position[i], now_, store.velocity[i], store.radius[i]};
     for (std::size_t ax = 0; ax < 3; ++ax) {
       const auto k = static_cast<int>(ax);
@@ -755,8 +843,12 @@ void EventDrivenCollider::initialize(ParticleStore& store, const Domain& domain,
   candidates_.assign(2 * 27 + kCandidateSlack, -1);
   columns_.resize(candidates_.size());
   candidate_lines_.resize(candidates_.size());
-  for (std::size_t i = 0; i < n; ++i) bin(static_cast<int>(i), cell_index(cell_of(pending_[i])));
-  for (std::size_t i = 0; i < n; ++i) predict(static_cast<int>(i), -1);
+  if (schedule) {
+    take_schedule(*schedule);
+  } else {
+    for (std::size_t i = 0; i < n; ++i) bin(static_cast<int>(i), cell_index(cell_of(pending_[i])));
+    for (std::size_t i = 0; i < n; ++i) predict(static_cast<int>(i), -1);
+  }
   std::vector<double> keys(n);
   for (std::size_t i = 0; i < n; ++i) keys[i] = key(static_cast<int>(i));
   calendar_.reset(keys);

@@ -165,6 +165,20 @@ struct EventStats {
   long pair_checks = 0;   ///< partner candidates examined
 };
 
+/// What the collider holds between advance_to() calls besides the store it writes back: each
+/// particle's pending events, cell, collision counter and place in its cell's ring, and the
+/// collapse detector's records. A checkpoint that keeps it lets a restarted run go on exactly as
+/// the uninterrupted one; without it initialize() predicts every event afresh from the store
+/// (the same physics, other round-off from then on).
+struct EventSchedule {
+  double time = 0;  ///< when the store was written back (the particles' common clock)
+  // Per particle, in store order.
+  std::vector<double> collision_time, crossing_time, burst_start;
+  std::vector<std::int64_t> partner, partner_count, counter, burst_count, crossing_face, ring_next;
+  std::vector<std::int64_t> cell;  ///< three per particle
+  std::vector<std::int64_t> head;  ///< per cell, and the empty cell
+};
+
 class EventDrivenCollider {
  public:
   explicit EventDrivenCollider(EventDrivenSettings settings = {});
@@ -173,6 +187,14 @@ class EventDrivenCollider {
   /// acceleration F/m (throws std::invalid_argument otherwise, or for open faces), bins the
   /// particles and predicts their first events.
   void initialize(ParticleStore& store, const Domain& domain, double start_time = 0.0);
+  /// initialize() from a store written back by advance_to() and the schedule() taken then (a
+  /// restart): nothing is predicted, and the events come in the order they would have come
+  /// without the break. Throws std::invalid_argument when the schedule does not fit the store
+  /// and the domain.
+  void resume(ParticleStore& store, const Domain& domain, const EventSchedule& schedule);
+  /// The state to resume() from, valid right after advance_to() (before anything changes the
+  /// store).
+  EventSchedule schedule() const;
 
   /// Processes every event up to `target` and leaves all particles synchronised at `target`
   /// (positions wrapped into the box) and written back to the store. Throws
@@ -245,6 +267,10 @@ class EventDrivenCollider {
     double inverse_inertia;
   };
 
+  /// initialize()'s work, from `schedule` when given (resume()).
+  void set_up(ParticleStore& store, const Domain& domain, double start_time, const EventSchedule* schedule);
+  /// Takes the pending events, counters, bursts and rings from `schedule` (set_up's part).
+  void take_schedule(const EventSchedule& schedule);
   void sync(int i, double t);
   /// Rescans all adjacent cells and walls (layer < 0), or after a crossing only the cells that
   /// became adjacent (layer = crossed face), keeping the earlier of old and new candidates.

@@ -92,6 +92,30 @@ INSTANTIATE_TEST_SUITE_P(
              std::to_string(s.n);
     });
 
+// One list laid over box after box (configure() keeps the adjacency while the cell counts and
+// periodic axes stay): walls, then the same box periodic (same counts, other adjacency), then a
+// longer box, then back.
+TEST(CellList, ReconfiguredForAnotherBoxFindsItsPairs) {
+  const double cutoff = 0.6;
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  hs::CellList cells;
+  for (const auto& [length_x, periodic] : std::vector<std::pair<double, bool>>{
+           {4.0, false}, {4.0, true}, {5.0, true}, {4.0, false}, {4.0, true}}) {
+    gp::Domain domain;
+    domain.hi = Vec3(length_x, 3.0, 2.5);
+    const gp::FaceKind kind = periodic ? gp::FaceKind::kPeriodic : gp::FaceKind::kWall;
+    for (auto& face : domain.face) face = {kind, kind};
+    std::vector<Vec3> x(400);
+    for (auto& p : x) p = Vec3(length_x * u(rng), 3.0 * u(rng), 2.5 * u(rng));
+    cells.configure(domain, cutoff);
+    cells.build(x);
+    long visits = 0;
+    EXPECT_EQ(from_cells(domain, cells, x, cutoff, &visits), brute_force(domain, x, cutoff))
+        << "box " << length_x << (periodic ? " periodic" : " walls");
+  }
+}
+
 TEST(CellList, CellsAreAtLeastTheCutoffWide) {
   gp::Domain domain;
   domain.hi = Vec3(10.0, 7.0, 3.4);
