@@ -364,7 +364,7 @@ int Simulation::run() {
     wall_ = wall.seconds();
     if (checkpoint_every_ > 0 && clock_.step % checkpoint_every_ == 0)
       write_checkpoint("periodic");
-    progress.update(clock_.step, clock_.t, dt, system_->progress_note());
+    if (progress.due()) progress.update(clock_.step, clock_.t, dt, system_->progress_note());
     if (flags & 2) {
       progress.finish();
       spdlog::warn("interrupted: stopping after step {}", clock_.step);

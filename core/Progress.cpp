@@ -34,12 +34,13 @@ std::string ProgressReporter::line(long step, double t, double dt, const std::st
                      note.empty() ? "" : "  ", note);
 }
 
+bool ProgressReporter::due() const {
+  return enabled_ && wall_.seconds() - last_print_ >= (on_terminal_ ? 0.2 : interval_s_);
+}
+
 void ProgressReporter::update(long step, double t, double dt, const std::string& note) {
-  if (!enabled_) return;
-  const double now = wall_.seconds();
-  const double interval = on_terminal_ ? 0.2 : interval_s_;
-  if (now - last_print_ < interval) return;
-  last_print_ = now;
+  if (!due()) return;
+  last_print_ = wall_.seconds();
   if (on_terminal_) {
     std::fprintf(stderr, "\r%s\033[K", line(step, t, dt, note).c_str());
     std::fflush(stderr);

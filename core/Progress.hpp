@@ -13,6 +13,9 @@ class ProgressReporter {
   ProgressReporter(double t_start, double t_end, double interval_s, bool enabled);
   /// Called after every step; prints when due. `note` is a short system-specific summary.
   void update(long step, double t, double dt, const std::string& note = {});
+  /// Whether the next update() will print: a caller whose note costs something to make (a count
+  /// over the particles) makes it only then.
+  bool due() const;
   /// Ends the in-place line (if any) so following output starts on a fresh line.
   void finish();
   static std::string format_duration(double seconds);

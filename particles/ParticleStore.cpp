@@ -1,5 +1,10 @@
 #include "particles/ParticleStore.hpp"
 
+#include <bit>
+#include <cstdint>
+
+#include "core/KernelClones.hpp"
+
 namespace grainwave::particles {
 
 ParticleStore& ParticleStore::operator=(const ParticleStore& other) {
@@ -62,6 +67,18 @@ std::size_t ParticleStore::add(std::int64_t particle_id, const Vec3& x, const Ve
 }
 
 namespace {
+/// Whether any component of `v` has the exponent of a NaN or an infinity: an OR over the bits,
+/// which the compiler turns into vector code where it has 64-bit compares (AVX2).
+GRAINWAVE_CLONES_AVX2 bool any_non_finite(const std::vector<Vec3>& v) {
+  static_assert(sizeof(Vec3) == 3 * sizeof(double), "the Vec3 arrays are read as doubles");
+  constexpr std::uint64_t kExponent = 0x7ff0000000000000ull;
+  const double* x = v.empty() ? nullptr : v.front().data();
+  const std::size_t n = 3 * v.size();
+  std::uint64_t found = 0;
+  for (std::size_t k = 0; k < n; ++k) found |= (std::bit_cast<std::uint64_t>(x[k]) & kExponent) == kExponent ? 1u : 0u;
+  return found != 0;
+}
+
 template <class T>
 void move_last_into(std::vector<T>& a, std::size_t i) {
   a[i] = a.back();
@@ -80,6 +97,14 @@ void ParticleStore::remove(std::size_t i) {
   move_last_into(inertia, i);
   move_last_into(id, i);
   move_last_into(flags, i);
+}
+
+std::size_t ParticleStore::first_non_finite() const {
+  if (!any_non_finite(position) && !any_non_finite(velocity) && !any_non_finite(angular_velocity))
+    return size();
+  for (std::size_t i = 0; i < size(); ++i)
+    if (!position[i].allFinite() || !velocity[i].allFinite() || !angular_velocity[i].allFinite()) return i;
+  return size();
 }
 
 void ParticleStore::append_from(const ParticleStore& other, std::size_t i) {

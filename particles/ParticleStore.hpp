@@ -99,6 +99,10 @@ struct ParticleStore {
   void permute(const std::vector<std::uint32_t>& order);
 
   bool is_fixed(std::size_t i) const { return (flags[i] & kFixed) != 0; }
+  /// The first slot whose position, velocity or angular velocity holds a NaN or an infinity, or
+  /// size() when all are finite. Runs check it after every step: one pass without branches over
+  /// the three arrays, and a search only when it finds something.
+  std::size_t first_non_finite() const;
   /// Inverse mass, zero for fixed particles (so impulses and forces leave them unmoved).
   double inverse_mass(std::size_t i) const { return is_fixed(i) ? 0.0 : 1.0 / mass[i]; }
   double inverse_inertia(std::size_t i) const { return is_fixed(i) ? 0.0 : 1.0 / inertia[i]; }

@@ -452,16 +452,12 @@ void ParticleSystem::apply_boundaries() {
 }
 
 std::optional<std::string> ParticleSystem::check_state() const {
-  for (std::size_t i = 0; i < store_.size(); ++i) {
-    const bool finite = store_.position[i].allFinite() && store_.velocity[i].allFinite() &&
-                        store_.angular_velocity[i].allFinite();
-    if (!finite) {
-      const Vec3& x = store_.position[i];
-      return fmt::format("non-finite state of particle id {} (position ({}, {}, {}), velocity "
-                         "({}, {}, {}))",
-                         store_.id[i], x.x(), x.y(), x.z(), store_.velocity[i].x(),
-                         store_.velocity[i].y(), store_.velocity[i].z());
-    }
+  if (const std::size_t i = store_.first_non_finite(); i < store_.size()) {
+    const Vec3& x = store_.position[i];
+    return fmt::format("non-finite state of particle id {} (position ({}, {}, {}), velocity "
+                       "({}, {}, {}))",
+                       store_.id[i], x.x(), x.y(), x.z(), store_.velocity[i].x(),
+                       store_.velocity[i].y(), store_.velocity[i].z());
   }
   if (mode_ != CollisionMode::kNone) {
     // The step has just measured it on this same state (check_state follows advance).

@@ -906,13 +906,10 @@ void DemSystem::sample_statistics() {
 
 std::optional<std::string> DemSystem::check_state() const {
   if (!skin_failure_.empty()) return skin_failure_;
-  for (std::size_t i = 0; i < store_.size(); ++i) {
-    if (!store_.position[i].allFinite() || !store_.velocity[i].allFinite() ||
-        !store_.angular_velocity[i].allFinite()) {
-      const Vec3& x = store_.position[i];
-      return fmt::format("non-finite state of particle id {} at ({}, {}, {})", store_.id[i], x.x(),
-                         x.y(), x.z());
-    }
+  if (const std::size_t i = store_.first_non_finite(); i < store_.size()) {
+    const Vec3& x = store_.position[i];
+    return fmt::format("non-finite state of particle id {} at ({}, {}, {})", store_.id[i], x.x(),
+                       x.y(), x.z());
   }
   const DeepestContact& c = field_->deepest_contact();
   if (c.overlap_over_radius > max_overlap_ratio_)
