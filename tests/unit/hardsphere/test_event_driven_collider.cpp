@@ -195,6 +195,31 @@ void expect_agreement(const char* what, const Comparison& c) {
   EXPECT_LT(c.worst_state, 1e-9);
 }
 
+// Two runs processed the same collisions at the same times and ended in the same state, bitwise.
+void expect_same_run(const std::vector<hs::CollisionRecord>& log_a, const std::vector<hs::CollisionRecord>& log_b,
+                     const gp::ParticleStore& a, const gp::ParticleStore& b) {
+  ASSERT_EQ(log_a.size(), log_b.size());
+  for (std::size_t m = 0; m < log_a.size(); ++m) {
+    ASSERT_EQ(log_a[m].time, log_b[m].time) << "collision " << m;
+    ASSERT_EQ(log_a[m].id_a, log_b[m].id_a) << "collision " << m;
+    ASSERT_EQ(log_a[m].id_b, log_b[m].id_b) << "collision " << m;
+  }
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    ASSERT_EQ(a.position[i], b.position[i]) << "particle " << i;
+    ASSERT_EQ(a.velocity[i], b.velocity[i]) << "particle " << i;
+    ASSERT_EQ(a.angular_velocity[i], b.angular_velocity[i]) << "particle " << i;
+  }
+}
+
+/// 256 rough spheres under gravity between walls in y, periodic in x and z (FCC start).
+void rough_gas_between_walls(gp::ParticleStore& start, gp::Domain& d) {
+  gp::testing::fcc_gas(start, d, 4, 0.3, 1.0, 7);
+  d.face[1] = {gp::FaceKind::kWall, gp::FaceKind::kWall};
+  d.lo.y() -= 0.2;
+  d.hi.y() += 0.2;
+  for (std::size_t i = 0; i < start.size(); ++i) start.force[i] = start.mass[i] * Vec3(0, -3.0, 0);
+}
+
 // The AVX2 paths (where the machine has it: the pair scan in its four variants, the vector
 // gather of the adjacent cells, the unaccelerated crossing time) and the portable ones do the
 // same operations in the same order: the collision sequence and the final state are bitwise
@@ -214,28 +239,14 @@ void expect_vector_scan_equals_portable(const gp::ParticleStore& start, const gp
   std::printf("N = %zu: vector and portable scans: %zu and %zu collisions\n", start.size(), log[0].size(),
               log[1].size());
   EXPECT_GT(log[0].size(), least_collisions);
-  ASSERT_EQ(log[0].size(), log[1].size());
-  for (std::size_t m = 0; m < log[0].size(); ++m) {
-    ASSERT_EQ(log[0][m].time, log[1][m].time) << "collision " << m;
-    ASSERT_EQ(log[0][m].id_a, log[1][m].id_a) << "collision " << m;
-    ASSERT_EQ(log[0][m].id_b, log[1][m].id_b) << "collision " << m;
-  }
-  for (std::size_t i = 0; i < start.size(); ++i) {
-    ASSERT_EQ(store[0].position[i], store[1].position[i]) << "particle " << i;
-    ASSERT_EQ(store[0].velocity[i], store[1].velocity[i]) << "particle " << i;
-    ASSERT_EQ(store[0].angular_velocity[i], store[1].angular_velocity[i]) << "particle " << i;
-  }
+  expect_same_run(log[0], log[1], store[0], store[1]);
 }
 
 // A rough inelastic gas under gravity between walls: the accelerated kernel, with images.
 TEST(EventDrivenCollider, VectorAndPortableScansAreBitwiseEqual) {
   gp::ParticleStore start;
   gp::Domain d;
-  gp::testing::fcc_gas(start, d, 4, 0.3, 1.0, 7);  // N = 256
-  d.face[1] = {gp::FaceKind::kWall, gp::FaceKind::kWall};
-  d.lo.y() -= 0.2;
-  d.hi.y() += 0.2;
-  for (std::size_t i = 0; i < start.size(); ++i) start.force[i] = start.mass[i] * Vec3(0, -3.0, 0);
+  rough_gas_between_walls(start, d);
   expect_vector_scan_equals_portable(start, d, hs::CollisionLaw{0.9, 0.3}, 1.0, 500);
 }
 
@@ -297,11 +308,7 @@ TEST(EventDrivenCollider, AgreesWithRetrospectiveInCrowdedCells) {
 TEST(EventDrivenCollider, ResumedFromItsScheduleGoesOnBitwise) {
   gp::ParticleStore start;
   gp::Domain d;
-  gp::testing::fcc_gas(start, d, 4, 0.3, 1.0, 7);  // N = 256
-  d.face[1] = {gp::FaceKind::kWall, gp::FaceKind::kWall};
-  d.lo.y() -= 0.2;
-  d.hi.y() += 0.2;
-  for (std::size_t i = 0; i < start.size(); ++i) start.force[i] = start.mass[i] * Vec3(0, -3.0, 0);
+  rough_gas_between_walls(start, d);
   const hs::EventDrivenSettings settings{hs::CollisionLaw{0.9, 0.3}};
   hs::EventDrivenCollider going_on(settings);
   going_on.initialize(start, d);
@@ -336,19 +343,10 @@ TEST(EventDrivenCollider, ResumedFromItsScheduleGoesOnBitwise) {
     for (const double t : {0.8, 1.1, 1.5}) colliders[run]->advance_to(store[run], d, t);
   }
   EXPECT_GT(log[0].size(), 300u);
-  ASSERT_EQ(log[0].size(), log[1].size());
-  for (std::size_t m = 0; m < log[0].size(); ++m) {
-    ASSERT_EQ(log[0][m].time, log[1][m].time) << "collision " << m;
-    ASSERT_EQ(log[0][m].id_a, log[1][m].id_a) << "collision " << m;
-    ASSERT_EQ(log[0][m].id_b, log[1][m].id_b) << "collision " << m;
-  }
+  expect_same_run(log[0], log[1], store[0], store[1]);
   bool fresh_differs = log[2].size() != log[0].size();
-  for (std::size_t i = 0; i < start.size(); ++i) {
-    ASSERT_EQ(store[0].position[i], store[1].position[i]) << "particle " << i;
-    ASSERT_EQ(store[0].velocity[i], store[1].velocity[i]) << "particle " << i;
-    ASSERT_EQ(store[0].angular_velocity[i], store[1].angular_velocity[i]) << "particle " << i;
+  for (std::size_t i = 0; i < start.size(); ++i)
     fresh_differs = fresh_differs || store[2].position[i] != store[0].position[i];
-  }
   EXPECT_TRUE(fresh_differs) << "predicting afresh gave the same state: the test would not see a lost schedule";
   // A schedule that does not fit is refused, not followed.
   hs::EventSchedule broken = schedule;
