@@ -128,6 +128,16 @@
 // requesting all 27 head words instead of one per row of three was slower still (275-314 k/s).
 // glibc's huge pages for every allocation (GLIBC_TUNABLES=glibc.malloc.hugetlb=1, the arrays
 // under 2 MB included): 483-585 against 530-558 k/s, no change.
+// Stop 51, the runs rather than the collider: ParticleSystem had called initialize() at every
+// step (so that a restart would be exact) and searched the state for overlaps twice, laying the
+// search's cell grid anew each time. For hs_gas.toml (N = 1372, steps of 0.1, 0.8 collisions a
+// particle each) that was 725 M instructions to t = 3 against 228 M now (callgrind): the events
+// go on across steps, checkpoints carry schedule() (resume()), and the overlap search is one a
+// step on a grid laid once. collisions_per_s of the case 0.41-0.42 M -> 0.81-0.90 M (three
+// alternating runs), at N = 97 556 0.245 M -> 0.35-0.37 M; the bench above never had these costs.
+// A dependent read of the other line of a 128-byte pair after a miss took 13-16 ns against
+// 155-160 ns for the miss (this VM), so Flight and Pending in one pair would save little: the
+// event's two lines are requested together already.
 #include <array>
 #include <cstdint>
 #include <limits>
