@@ -683,13 +683,19 @@ void EventDrivenCollider::take_schedule(const EventSchedule& schedule) {
     fits(schedule.ring_next[i] >= 0 && schedule.ring_next[i] < n_int, "a ring");
     cell_link_[i].next = static_cast<int>(schedule.ring_next[i]);
   }
-  for (std::size_t i = 0; i < n; ++i)
-    cell_link_[static_cast<std::size_t>(cell_link_[i].next)].prev = static_cast<int>(i);
+  // Each ring runs through one cell's particles, and each head word names one of its own.
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto next = static_cast<std::size_t>(cell_link_[i].next);
+    fits(pending_[next].cell == pending_[i].cell, "a ring across cells");
+    cell_link_[next].prev = static_cast<int>(i);
+  }
   for (std::size_t c = 0; c < head_.size(); ++c) {
     const std::int64_t head = schedule.head[c];
     // Empty, one particle, or several_head() of the first of a ring.
     const std::int64_t first = head >= 0 ? head : kEmptyHead - 1 - head;
-    fits(head == kEmptyHead || (first >= 0 && first < n_int), "a cell's head");
+    fits(head == kEmptyHead || (first >= 0 && first < n_int &&
+                                cell_index(cell_of(pending_[static_cast<std::size_t>(first)])) == static_cast<int>(c)),
+         "a cell's head");
     head_[c] = static_cast<int>(head);
   }
 }

@@ -355,6 +355,9 @@ TEST(EventDrivenCollider, ResumedFromItsScheduleGoesOnBitwise) {
   broken = schedule;
   broken.head.pop_back();
   EXPECT_THROW(resumed.resume(store[1], d, broken), std::invalid_argument);
+  broken = schedule;  // a particle's ring moved to a neighbouring cell
+  broken.cell[3 * 5] = broken.cell[3 * 5] == 0 ? 1 : 0;
+  EXPECT_THROW(resumed.resume(store[1], d, broken), std::invalid_argument);
 }
 
 TEST(EventDrivenCollider, FrictionlessCollisionsLeaveSpinsExactlyAlone) {
