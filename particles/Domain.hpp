@@ -26,16 +26,35 @@ struct Domain {
   Eigen::Vector3d length() const { return hi - lo; }
   bool periodic(int axis) const { return face[static_cast<std::size_t>(axis)][0] == FaceKind::kPeriodic; }
 
+  /// The minimum image of a difference of positions, with the box read once: for the loops over
+  /// many pairs (separation() builds one per call). A component beyond half the period on a
+  /// periodic axis moves by one period; the other axes have an infinite half period and never
+  /// move. Selects rather than branches: the same values, and no branch to mispredict.
+  struct MinimumImage {
+    std::array<double, 3> period{0.0, 0.0, 0.0};
+    std::array<double, 3> half{std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
+                               std::numeric_limits<double>::infinity()};
+    Eigen::Vector3d operator()(Eigen::Vector3d d) const {
+      for (int k = 0; k < 3; ++k) {
+        const auto ax = static_cast<std::size_t>(k);
+        d[k] = d[k] > half[ax] ? d[k] - period[ax] : (d[k] < -half[ax] ? d[k] + period[ax] : d[k]);
+      }
+      return d;
+    }
+  };
+  MinimumImage minimum_image() const {
+    MinimumImage image;
+    for (int k = 0; k < dimension; ++k)
+      if (periodic(k)) {
+        const auto ax = static_cast<std::size_t>(k);
+        image.period[ax] = hi[k] - lo[k];
+        image.half[ax] = 0.5 * image.period[ax];
+      }
+    return image;
+  }
   /// Minimum-image separation b - a across periodic axes.
   Eigen::Vector3d separation(const Eigen::Vector3d& a, const Eigen::Vector3d& b) const {
-    Eigen::Vector3d d = b - a;
-    for (int k = 0; k < dimension; ++k) {
-      if (!periodic(k)) continue;
-      const double L = hi[k] - lo[k];
-      if (d[k] > 0.5 * L) d[k] -= L;
-      else if (d[k] < -0.5 * L) d[k] += L;
-    }
-    return d;
+    return minimum_image()(b - a);
   }
 
   /// Maps a position back into [lo, hi) along periodic axes.

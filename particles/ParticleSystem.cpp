@@ -610,23 +610,12 @@ void ParticleSystem::write_event_schedule(io::Hdf5Group& particles) const {
   auto g = particles.create_group("event_schedule");
   g.set_attribute("time", s.time);
   const bool local_rows = !replicated_ || mpi::is_root();  // replicated: rank 0 writes
-  auto reals = [&](const char* name, const std::vector<double>& v) {
-    g.write_rows(name, v.data(), local_rows ? v.size() : 0);
+  auto write = [&](const char* name, const auto& values, std::size_t per_row) {
+    g.write_rows(name, values.data(), local_rows ? values.size() / per_row : 0, per_row);
   };
-  auto integers = [&](const char* name, const std::vector<std::int64_t>& v, std::size_t components = 1) {
-    g.write_rows(name, v.data(), local_rows ? v.size() / components : 0, components);
-  };
-  reals("collision_time", s.collision_time);
-  reals("crossing_time", s.crossing_time);
-  reals("burst_start", s.burst_start);
-  integers("partner", s.partner);
-  integers("partner_count", s.partner_count);
-  integers("counter", s.counter);
-  integers("burst_count", s.burst_count);
-  integers("crossing_face", s.crossing_face);
-  integers("ring_next", s.ring_next);
-  integers("cell", s.cell, 3);
-  integers("head", s.head);
+  for (const auto& column : hardsphere::kEventScheduleReals) write(column.name, s.*column.values, column.per_particle);
+  for (const auto& column : hardsphere::kEventScheduleIntegers) write(column.name, s.*column.values, column.per_particle);
+  write("head", s.head, 1);
 }
 
 void ParticleSystem::read_event_schedule(const io::Hdf5Group& particles) {
@@ -634,18 +623,12 @@ void ParticleSystem::read_event_schedule(const io::Hdf5Group& particles) {
   const auto g = particles.open_group("event_schedule");
   hardsphere::EventSchedule s;
   s.time = g.real_attribute("time");
-  auto all = [&](const char* name) { return g.shape(name)[0]; };
-  s.collision_time = g.read_rows_real("collision_time", 0, all("collision_time"));
-  s.crossing_time = g.read_rows_real("crossing_time", 0, all("crossing_time"));
-  s.burst_start = g.read_rows_real("burst_start", 0, all("burst_start"));
-  s.partner = g.read_rows_integer("partner", 0, all("partner"));
-  s.partner_count = g.read_rows_integer("partner_count", 0, all("partner_count"));
-  s.counter = g.read_rows_integer("counter", 0, all("counter"));
-  s.burst_count = g.read_rows_integer("burst_count", 0, all("burst_count"));
-  s.crossing_face = g.read_rows_integer("crossing_face", 0, all("crossing_face"));
-  s.ring_next = g.read_rows_integer("ring_next", 0, all("ring_next"));
-  s.cell = g.read_rows_integer("cell", 0, all("cell"));
-  s.head = g.read_rows_integer("head", 0, all("head"));
+  auto rows = [&](const char* name) { return g.shape(name)[0]; };  // every rank reads all
+  for (const auto& column : hardsphere::kEventScheduleReals)
+    s.*column.values = g.read_rows_real(column.name, 0, rows(column.name));
+  for (const auto& column : hardsphere::kEventScheduleIntegers)
+    s.*column.values = g.read_rows_integer(column.name, 0, rows(column.name));
+  s.head = g.read_rows_integer("head", 0, rows("head"));
   resume_schedule_ = std::move(s);
 }
 

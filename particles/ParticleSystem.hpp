@@ -83,6 +83,9 @@ class ParticleSystem : public io::System {
   void free_flight(double dt);
   void apply_boundaries();
   void record_totals(long step_collisions, long boundary_collisions);
+  /// The event-driven collider's schedule into a checkpoint's particles group, and back.
+  void write_event_schedule(io::Hdf5Group& particles) const;
+  void read_event_schedule(const io::Hdf5Group& particles);
   std::int64_t global_count() const;
   double total(double local) const;  ///< sum over ranks, unless replicated
 
@@ -108,9 +111,6 @@ class ParticleSystem : public io::System {
   bool events_continue_ = false;
   /// The event schedule a checkpoint held, for the first step after a restart.
   std::optional<hardsphere::EventSchedule> resume_schedule_;
-  /// The collider's schedule into a checkpoint's particles group, and back.
-  void write_event_schedule(io::Hdf5Group& particles) const;
-  void read_event_schedule(const io::Hdf5Group& particles);
   double overlap_tolerance_ = 1e-10;
 
   /// Per-step totals for the time series file (totals.csv) and the Haff's-law check.

@@ -99,6 +99,7 @@ void LinkedCells::build(const ParticleStore& store, const Domain& domain, double
         }
   }
   lo_ = domain.lo;
+  image_ = domain.minimum_image();
   short_periodic_axis_ = false;
   for (int k = 0; k < 3; ++k) {
     const auto uk = static_cast<std::size_t>(k);

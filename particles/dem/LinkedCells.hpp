@@ -70,17 +70,10 @@ class LinkedCells {
     const PackedParticle& p = packed_[a];
     const PackedParticle& q = packed_[b];
     Vec3 d = q.x + shift - p.x;
-    if (short_periodic_axis_) minimum_image(d);
+    if (short_periodic_axis_) d = image_(d);
     const double reach = p.r + q.r + margin;
     const double distance2 = d.squaredNorm();
     if (distance2 < reach * reach) f(sorted_[a], sorted_[b], d, distance2);
-  }
-  void minimum_image(Vec3& d) const {
-    for (int k = 0; k < 3; ++k) {
-      if (!wraps_[static_cast<std::size_t>(k)]) continue;
-      if (d[k] > 0.5 * period_[k]) d[k] -= period_[k];
-      else if (d[k] < -0.5 * period_[k]) d[k] += period_[k];
-    }
   }
   /// Neighbour cells of c that are visited from c, with the shift that turns a position in the
   /// neighbour into the image next to c. With >= 3 cells on every periodic axis these are the
@@ -102,6 +95,7 @@ class LinkedCells {
   bool short_periodic_axis_ = false;
   Vec3 lo_ = Vec3::Zero();
   Vec3 period_ = Vec3::Zero();
+  Domain::MinimumImage image_;  ///< the domain's, for the pairs across a short periodic axis
   Vec3 inverse_width_ = Vec3::Zero();
   std::vector<std::uint32_t> cell_start_;
   std::vector<std::uint32_t> cell_of_;

@@ -48,11 +48,7 @@ void VerletList::build(const ParticleStore& store, const Domain& domain, double 
                        const std::vector<std::uint32_t>* visit_order, std::size_t owned) {
   skin_ = skin;
   ++builds_;
-  for (int k = 0; k < 3; ++k) {
-    const bool wraps = k < domain.dimension && domain.periodic(k);
-    period_[k] = wraps ? domain.hi[k] - domain.lo[k] : 0.0;
-    half_period_[k] = wraps ? 0.5 * period_[k] : std::numeric_limits<double>::infinity();
-  }
+  image_ = domain.minimum_image();
   reference_.assign(store.position.begin(), store.position.end());
   ids_.assign(store.id.begin(), store.id.end());
   owned_ = std::min(owned, store.size());
@@ -64,14 +60,15 @@ void VerletList::build(const ParticleStore& store, const Domain& domain, double 
   Vec3 inner_lo = Vec3::Constant(-std::numeric_limits<double>::infinity());
   Vec3 inner_hi = Vec3::Constant(std::numeric_limits<double>::infinity());
   for (int k = 0; k < 3; ++k)
-    if (period_[k] > 0.0) {
+    if (image_.period[static_cast<std::size_t>(k)] > 0.0) {
       inner_lo[k] = domain.lo[k] + skin;
       inner_hi[k] = domain.hi[k] - skin;
     }
   auto stays_inside = [&](const Vec3& x) {
     return (x.array() >= inner_lo.array()).all() && (x.array() <= inner_hi.array()).all();
   };
-  const Vec3 separation_limit = half_period_ - Vec3::Constant(skin);  // infinite where not periodic
+  const Vec3 separation_limit = Vec3(image_.half[0], image_.half[1], image_.half[2]) -
+                                Vec3::Constant(skin);  // infinite where not periodic
   const auto first_ghost = static_cast<std::uint32_t>(owned_);
   cells_.for_each_pair_within(skin, [&](std::uint32_t i, std::uint32_t j, const Vec3&, double) {
     if ((i >= first_ghost && j >= first_ghost) || (store.is_fixed(i) && store.is_fixed(j))) return;

@@ -69,14 +69,8 @@ class VerletList {
     }
   }
 
-  /// A separation wrapped to its minimum image across the periodic axes of the build's domain
-  /// (Domain::separation with the periods kept: every axis is tested, the others never wrap).
-  Vec3 minimum_image(Vec3 d) const {
-    // Selects, not branches: the same values, and no branch for the predictor to miss.
-    for (int k = 0; k < 3; ++k)
-      d[k] = d[k] > half_period_[k] ? d[k] - period_[k] : (d[k] < -half_period_[k] ? d[k] + period_[k] : d[k]);
-    return d;
-  }
+  /// A separation wrapped to its minimum image across the periodic axes of the build's domain.
+  Vec3 minimum_image(const Vec3& d) const { return image_(d); }
 
   /// Built, and its first `owned` slots hold the particles they held at the build.
   bool holds(const ParticleStore& store, std::size_t owned) const;
@@ -107,8 +101,7 @@ class VerletList {
   std::vector<std::int64_t> ids_;
   std::size_t owned_ = 0;
   double skin_ = -1.0;
-  Vec3 period_ = Vec3::Zero();
-  Vec3 half_period_ = Vec3::Zero();
+  Domain::MinimumImage image_;  ///< the build's domain's
   long builds_ = 0;
 };
 

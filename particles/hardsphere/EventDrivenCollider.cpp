@@ -621,16 +621,8 @@ EventSchedule EventDrivenCollider::schedule() const {
   EventSchedule out;
   out.time = now_;
   const std::size_t n = pending_.size();
-  out.collision_time.resize(n);
-  out.crossing_time.resize(n);
-  out.burst_start.resize(n);
-  out.partner.resize(n);
-  out.partner_count.resize(n);
-  out.counter.resize(n);
-  out.burst_count.resize(n);
-  out.crossing_face.resize(n);
-  out.ring_next.resize(n);
-  out.cell.resize(3 * n);
+  for (const auto& column : kEventScheduleReals) (out.*column.values).resize(column.per_particle * n);
+  for (const auto& column : kEventScheduleIntegers) (out.*column.values).resize(column.per_particle * n);
   for (std::size_t i = 0; i < n; ++i) {
     const Pending& p = pending_[i];
     out.collision_time[i] = p.collision_time;
@@ -655,12 +647,11 @@ void EventDrivenCollider::take_schedule(const EventSchedule& schedule) {
       throw std::invalid_argument(
           std::string("EventDrivenCollider: the saved event schedule does not fit the particles (") + what + ")");
   };
-  for (const auto* column : {&schedule.collision_time, &schedule.crossing_time, &schedule.burst_start})
-    fits(column->size() == n, "a per-particle column's length");
-  for (const auto* column : {&schedule.partner, &schedule.partner_count, &schedule.counter, &schedule.burst_count,
-                             &schedule.crossing_face, &schedule.ring_next})
-    fits(column->size() == n, "a per-particle column's length");
-  fits(schedule.cell.size() == 3 * n && schedule.head.size() == head_.size(), "cells");
+  for (const auto& column : kEventScheduleReals)
+    fits((schedule.*column.values).size() == column.per_particle * n, column.name);
+  for (const auto& column : kEventScheduleIntegers)
+    fits((schedule.*column.values).size() == column.per_particle * n, column.name);
+  fits(schedule.head.size() == head_.size(), "head");
   const auto n_int = static_cast<std::int64_t>(n);
   for (std::size_t i = 0; i < n; ++i) {
     Pending& p = pending_[i];

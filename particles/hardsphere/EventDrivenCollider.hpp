@@ -189,6 +189,29 @@ struct EventSchedule {
   std::vector<std::int64_t> head;  ///< per cell, and the empty cell
 };
 
+/// EventSchedule's per-particle columns by name, with their values per particle: the one list
+/// that saving, reading and checking a schedule go through.
+template <class T>
+struct EventScheduleColumn {
+  const char* name;
+  std::vector<T> EventSchedule::*values;
+  std::size_t per_particle;
+};
+inline constexpr std::array<EventScheduleColumn<double>, 3> kEventScheduleReals{{
+    {"collision_time", &EventSchedule::collision_time, 1},
+    {"crossing_time", &EventSchedule::crossing_time, 1},
+    {"burst_start", &EventSchedule::burst_start, 1},
+}};
+inline constexpr std::array<EventScheduleColumn<std::int64_t>, 7> kEventScheduleIntegers{{
+    {"partner", &EventSchedule::partner, 1},
+    {"partner_count", &EventSchedule::partner_count, 1},
+    {"counter", &EventSchedule::counter, 1},
+    {"burst_count", &EventSchedule::burst_count, 1},
+    {"crossing_face", &EventSchedule::crossing_face, 1},
+    {"ring_next", &EventSchedule::ring_next, 1},
+    {"cell", &EventSchedule::cell, 3},
+}};
+
 class EventDrivenCollider {
  public:
   explicit EventDrivenCollider(EventDrivenSettings settings = {});

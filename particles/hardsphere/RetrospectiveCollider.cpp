@@ -336,31 +336,15 @@ double max_relative_overlap(const ParticleStore& store, const Domain& domain, Ce
   cells.configure(domain, 2.0 * max_radius);
   cells.build(store.position);
   double worst = 0.0;
-  // Domain::separation's minimum image with the box's lengths read once, not per pair (the
-  // same operations, so the same separations).
-  std::array<double, 3> length{}, half{};
-  std::array<bool, 3> periodic{};
-  for (int k = 0; k < domain.dimension; ++k) {
-    const auto ax = static_cast<std::size_t>(k);
-    periodic[ax] = domain.periodic(k);
-    length[ax] = domain.hi[k] - domain.lo[k];
-    half[ax] = 0.5 * length[ax];
-  }
+  const Domain::MinimumImage image = domain.minimum_image();  // the box read once, not per pair
   cells.for_each_pair([&](int i, int j) {
     const auto a = static_cast<std::size_t>(i), b = static_cast<std::size_t>(j);
     const double contact = store.radius[a] + store.radius[b];
-    Vec3 d = store.position[b] - store.position[a];
-    for (std::size_t ax = 0; ax < 3; ++ax) {
-      if (!periodic[ax]) continue;
-      double& c = d[static_cast<int>(ax)];
-      if (c > half[ax]) c -= length[ax];
-      else if (c < -half[ax]) c += length[ax];
-    }
-    const double squared = d.squaredNorm();
-    // Most pairs in reach are well apart: no square root for them. The margin leaves every pair
-    // whose rounded distance could fall short of contact to the exact expression below, so
-    // the result is the one computed for all pairs.
-    if (squared > contact * contact * (1 + 1e-12)) return;
+    const double squared = image(store.position[b] - store.position[a]).squaredNorm();
+    // Most pairs in reach are apart: no square root for them. The skip changes nothing: the
+    // square root is correctly rounded and monotone, and the rounded root of the rounded
+    // contact * contact is contact itself, so from there on the overlap below is <= 0.
+    if (squared >= contact * contact) return;
     const double overlap = contact - std::sqrt(squared);
     worst = std::max(worst, overlap / std::min(store.radius[a], store.radius[b]));
   });
